@@ -1,0 +1,33 @@
+"""ESP32 DevKit: telemetry radio on UART2 (GPIO17 TX, GPIO16 RX), files on littlefs."""
+NAME = "esp32"
+DIALECT = "common"
+SYSID = 1
+COMPID = 1
+MAV_TYPE = 11  # MAV_TYPE_SURFACE_BOAT
+MAV_AUTOPILOT = 0
+SERVICES = ("status", "params", "commands", "missions", "streams")
+STORAGE = "/data"
+UART_ID = 2
+UART_TX = 17
+UART_RX = 16
+BAUD = 57600
+MISSION_CAPACITY = 300
+FENCE_CAPACITY = 50
+RALLY_CAPACITY = 10
+OPERATOR_PASSKEY = None
+GCS_TIMEOUT_MS = 5000
+RAM_BUDGET = 96 * 1024
+
+
+def transports():
+    from machine import UART
+    from mavstack.transport import UartTransport
+
+    uart = UART(UART_ID, BAUD, tx=UART_TX, rx=UART_RX, txbuf=1024, rxbuf=1024, timeout=0)
+    return [UartTransport(uart, BAUD, "uart2")]
+
+
+def reset():
+    import machine
+
+    machine.reset()

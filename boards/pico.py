@@ -1,0 +1,33 @@
+"""Raspberry Pi Pico (RP2040): telemetry radio on UART0 (GP0 TX, GP1 RX), files on littlefs."""
+NAME = "pico"
+DIALECT = "common"
+SYSID = 1
+COMPID = 1
+MAV_TYPE = 10  # MAV_TYPE_GROUND_ROVER
+MAV_AUTOPILOT = 0
+SERVICES = ("status", "params", "commands", "missions", "streams")
+STORAGE = "/data"
+UART_ID = 0
+UART_TX = 0
+UART_RX = 1
+BAUD = 57600
+MISSION_CAPACITY = 200
+FENCE_CAPACITY = 50
+RALLY_CAPACITY = 10
+OPERATOR_PASSKEY = None
+GCS_TIMEOUT_MS = 5000
+RAM_BUDGET = 48 * 1024
+
+
+def transports():
+    from machine import UART, Pin
+    from mavstack.transport import UartTransport
+
+    uart = UART(UART_ID, BAUD, tx=Pin(UART_TX), rx=Pin(UART_RX), txbuf=1024, rxbuf=1024, timeout=0)
+    return [UartTransport(uart, BAUD, "uart0")]
+
+
+def reset():
+    import machine
+
+    machine.reset()

@@ -1,0 +1,31 @@
+"""STM32 pyboard (PYBv1.1): telemetry radio on UART(4) (X1 TX, X2 RX), files on internal flash."""
+NAME = "pyboard"
+DIALECT = "common"
+SYSID = 1
+COMPID = 1
+MAV_TYPE = 7  # MAV_TYPE_AIRSHIP (balloon-class payloads)
+MAV_AUTOPILOT = 0
+SERVICES = ("status", "params", "commands", "missions", "streams")
+STORAGE = "/flash/data"
+UART_ID = 4
+BAUD = 57600
+MISSION_CAPACITY = 200
+FENCE_CAPACITY = 50
+RALLY_CAPACITY = 10
+OPERATOR_PASSKEY = None
+GCS_TIMEOUT_MS = 5000
+RAM_BUDGET = 64 * 1024
+
+
+def transports():
+    from machine import UART
+    from mavstack.transport import UartTransport
+
+    uart = UART(UART_ID, BAUD, txbuf=1024, rxbuf=1024, timeout=0)
+    return [UartTransport(uart, BAUD, "uart4")]
+
+
+def reset():
+    import machine
+
+    machine.reset()

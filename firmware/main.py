@@ -1,0 +1,107 @@
+"""The program a board runs: build the endpoint its profile describes, then poll forever.
+
+    micropython firmware/main.py --board unix --link udpout:127.0.0.1:14550 --storage DIR
+Options: --board NAME, --link SPEC (repeatable: udpout:HOST:PORT, udpin:ADDR:PORT,
+serial:DEVICE:BAUD), --storage DIR, --sysid N, --set NAME=VALUE (board option,
+repeatable). On a board, with no arguments, the profile flashed as board.py is used.
+"""
+import sys
+
+from mavstack.compat import ticks_ms, sleep_ms
+from mavstack.endpoint import Endpoint, Reboot
+from mavstack.storage import Storage
+from mavstack.transport import open_transport
+
+
+def _here():
+    path = __file__ if "/" in __file__ else "./" + __file__
+    return path.rsplit("/", 1)[0]
+
+
+def parse_args(argv):
+    opts = {"board": None, "links": [], "storage": None, "sysid": None, "options": {}}
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
+        val = argv[i + 1] if i + 1 < len(argv) else None
+        if arg == "--board":
+            opts["board"] = val
+        elif arg == "--link":
+            opts["links"].append(val)
+        elif arg == "--storage":
+            opts["storage"] = val
+        elif arg == "--sysid":
+            opts["sysid"] = int(val)
+        elif arg == "--set":
+            key, _, value = val.partition("=")
+            opts["options"][key] = value
+        else:
+            raise SystemExit("unknown argument: %s (see firmware/main.py)" % arg)
+        i += 2
+    return opts
+
+
+def load_board(name):
+    if name is None:
+        import board  # the profile flashed onto the device
+
+        return board
+    # Running from the repository: profiles live in ../boards.
+    boards = _here() + "/../boards"
+    if boards not in sys.path:
+        sys.path.append(boards)
+    return __import__(name)
+
+
+def build(board, opts):
+    """Endpoint, links, storage and services as the board profile composes them."""
+    dialect = __import__("mavstack.dialects." + board.DIALECT, None, None, ("CRC_LEN",))
+    sysid = opts.get("sysid") or getattr(board, "SYSID", 1)
+    ep = Endpoint(dialect, sysid, getattr(board, "COMPID", 1))
+    ep.board = board
+    ep.options = opts.get("options", {})
+    ep.storage = Storage(opts.get("storage") or board.STORAGE)
+    specs = opts.get("links") or []
+    if specs:
+        for spec in specs:
+            ep.add_link(open_transport(spec, getattr(board, "UDP_BYTES_PER_S", 200000)))
+    else:
+        for transport in board.transports():
+            ep.add_link(transport)
+    for name in board.SERVICES:
+        module = __import__("mavstack.services." + name, None, None, ("create",))
+        module.create(ep)
+    app = board.application(ep) if hasattr(board, "application") else None
+    return ep, app
+
+
+def run(ep, app=None, period_ms=1):
+    while True:
+        now = ticks_ms()
+        ep.poll(now)
+        if app is not None:
+            app.tick(now)
+        sleep_ms(period_ms)
+
+
+def main(argv):
+    opts = parse_args(argv)
+    board = load_board(opts["board"])
+    while True:
+        ep, app = build(board, opts)
+        try:
+            run(ep, app)
+        except Reboot:
+            # A board resets in board.reset(); the unix vehicle restarts in place.
+            ep.close()
+            if hasattr(board, "reset"):
+                board.reset()
+            continue
+        except KeyboardInterrupt:
+            pass
+        ep.close()
+        return
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

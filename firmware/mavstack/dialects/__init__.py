@@ -1,0 +1,1 @@
+"""Generated MAVLink dialects: one module per XML dialect."""

@@ -1,0 +1,74 @@
+"""MAVLink 1 and 2 frame encoder into one preallocated transmit buffer.
+
+Usage, allocation-free per frame:
+    off = enc.begin()                       # payload offset for this link's version
+    struct.pack_into(FMT, enc.buf, off, ...) # pack the full (MAVLink 2) payload
+    n = enc.finish(msgid, sysid, compid)    # frame is enc.buf[0:n]; 0 if not sendable
+"""
+from .compat import const
+from .kernels import crc16, crc_accumulate, copy, zero
+from .parser import STX_V1, STX_V2, HEADER_V1, HEADER_V2, FRAME_MAX
+
+
+class Encoder:
+    def __init__(self, crc_len, version=2):
+        self.crc_len = crc_len
+        self.version = version
+        self.buf = bytearray(FRAME_MAX)
+        self.seq = 0
+        self.frames = 0
+
+    def begin(self):
+        """Payload offset in buf; the caller packs the whole payload there."""
+        return HEADER_V2 if self.version == 2 else HEADER_V1
+
+    def load(self, payload, n):
+        """Copy a prepacked payload (payload[0:n]) into place; returns its offset."""
+        off = self.begin()
+        copy(self.buf, payload, off, n)
+        return off
+
+    def finish(self, msgid, sysid, compid):
+        info = self.crc_len.get(msgid)
+        if info is None:
+            return 0
+        buf = self.buf
+        if self.version == 2:
+            plen = info >> 16
+            # Trailing zeros are implied on the wire; the first byte always stays.
+            while plen > 1 and buf[HEADER_V2 + plen - 1] == 0:
+                plen -= 1
+            buf[0] = STX_V2
+            buf[1] = plen
+            buf[2] = 0
+            buf[3] = 0
+            buf[4] = self.seq
+            buf[5] = sysid
+            buf[6] = compid
+            buf[7] = msgid & 0xFF
+            buf[8] = (msgid >> 8) & 0xFF
+            buf[9] = msgid >> 16
+            end = HEADER_V2 + plen
+        else:
+            if msgid > 255:
+                return 0
+            plen = (info >> 8) & 0xFF
+            buf[0] = STX_V1
+            buf[1] = plen
+            buf[2] = self.seq
+            buf[3] = sysid
+            buf[4] = compid
+            buf[5] = msgid
+            end = HEADER_V1 + plen
+        crc = crc_accumulate(crc16(buf, 1, end, 0xFFFF), info & 0xFF)
+        buf[end] = crc & 0xFF
+        buf[end + 1] = crc >> 8
+        self.seq = (self.seq + 1) & 0xFF
+        self.frames += 1
+        return end + 2
+
+    def clear(self, n):
+        """Zero the payload area before packing a message field by field."""
+        off = self.begin()
+        zero(self.buf, off, off + n)
+        return off

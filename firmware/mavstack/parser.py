@@ -1,0 +1,211 @@
+"""MAVLink 1 and 2 frame parser: bytes in, CRC-checked frames out, nothing allocated.
+
+A small state machine over one frame buffer (as in MAVLink's C library and
+fastmavlink), fed whatever chunk the transport has. A frame is accumulated in
+`buf` with its start marker at offset 0; its payload is exposed through one of two
+memoryviews made at start-up, zero-extended to the message's full length.
+
+A candidate frame that fails (bad CRC, unknown id, impossible length, unknown
+incompat flags) is not thrown away whole: its bytes after the start marker are
+scanned again, so a valid frame that begins inside rejected bytes is still found.
+"""
+from .compat import const
+from .kernels import crc16, find_stx, copy, zero, crc_accumulate
+
+STX_V1 = const(0xFE)
+STX_V2 = const(0xFD)
+HEADER_V1 = const(6)
+HEADER_V2 = const(10)
+SIGNATURE_LEN = const(13)
+IFLAG_SIGNED = const(0x01)
+FRAME_MAX = const(280)  # 10 header + 255 payload + 2 crc + 13 signature
+_SOURCES = const(8)  # senders tracked for sequence-gap loss figures
+
+
+class Parser:
+    def __init__(self, crc_len, on_frame):
+        self.crc_len = crc_len  # dialect.CRC_LEN: id -> crc_extra | len1 << 8 | len2 << 16
+        self.on_frame = on_frame  # called as on_frame(msgid, payload)
+        self.buf = bytearray(FRAME_MAX)
+        mv = memoryview(self.buf)
+        self._payload_v1 = mv[HEADER_V1 : HEADER_V1 + 255]
+        self._payload_v2 = mv[HEADER_V2 : HEADER_V2 + 255]
+        self.signature = bytearray(SIGNATURE_LEN)
+        # Bytes of a rejected candidate, waiting to be scanned again.
+        self._replay = bytearray(FRAME_MAX)
+        self._rpos = 0
+        self._rlen = 0
+        self._rstart = -1
+        self._cnt = 0  # bytes of the current candidate in buf
+        self._want = 0  # bytes needed before the next decision
+        self._have_header = False
+        self._plen = 0
+        self._info = 0
+        # The frame being delivered.
+        self.version = 0
+        self.msgid = 0
+        self.seq = 0
+        self.sysid = 0
+        self.compid = 0
+        self.signed = False
+        self.payload = self._payload_v2
+        # Statistics.
+        self.frames = 0
+        self.crc_errors = 0
+        self.bytes_discarded = 0
+        self.unknown_ids = 0
+        self.bad_frames = 0  # impossible length or unknown incompat flags
+        self.lost = 0
+        self._src_key = [-1] * _SOURCES
+        self._src_seq = bytearray(_SOURCES)
+        self._src_next = 0
+
+    def feed(self, data, n=-1):
+        """Consume data[0:n] (all of it when n < 0)."""
+        if n < 0:
+            n = len(data)
+        pos = 0
+        while True:
+            if self._rpos < self._rlen:
+                self._rpos = self._step(self._replay, self._rpos, self._rlen, True)
+            elif pos < n:
+                pos = self._step(data, pos, n, False)
+            else:
+                return
+
+    def _step(self, src, pos, end, replaying):
+        cnt = self._cnt
+        buf = self.buf
+        if cnt == 0:
+            p = find_stx(src, pos, end)
+            self.bytes_discarded += p - pos
+            if p >= end:
+                return end
+            stx = src[p]
+            buf[0] = stx
+            self._cnt = 1
+            self._want = HEADER_V2 if stx == STX_V2 else HEADER_V1
+            self._have_header = False
+            self._rstart = p if replaying else -1
+            return p + 1
+        k = self._want - cnt
+        if k > end - pos:
+            k = end - pos
+        copy(buf, src, cnt | pos << 10, k)
+        cnt += k
+        pos += k
+        self._cnt = cnt
+        if cnt < self._want:
+            return pos
+        if not self._have_header:
+            if self._header():
+                self._have_header = True
+                return pos
+        elif self._check():
+            self._cnt = 0
+            self._deliver()
+            return pos
+        return self._reject(pos, replaying)
+
+    def _header(self):
+        buf = self.buf
+        plen = buf[1]
+        if buf[0] == STX_V2:
+            if buf[2] & ~IFLAG_SIGNED:
+                self.bad_frames += 1
+                return False
+            msgid = buf[7] | buf[8] << 8 | buf[9] << 16
+            info = self.crc_len.get(msgid)
+            if info is None:
+                self.unknown_ids += 1
+                return False
+            if plen == 0 or plen > (info >> 16):
+                self.bad_frames += 1
+                return False
+            want = HEADER_V2 + plen + 2
+            if buf[2] & IFLAG_SIGNED:
+                want += SIGNATURE_LEN
+        else:
+            msgid = buf[5]
+            info = self.crc_len.get(msgid)
+            if info is None:
+                self.unknown_ids += 1
+                return False
+            if plen != (info >> 8) & 0xFF:
+                self.bad_frames += 1
+                return False
+            want = HEADER_V1 + plen + 2
+        self._plen = plen
+        self._info = info
+        self._want = want
+        return True
+
+    def _check(self):
+        buf = self.buf
+        end = (HEADER_V2 if buf[0] == STX_V2 else HEADER_V1) + self._plen
+        crc = crc16(buf, 1, end, 0xFFFF)
+        crc = crc_accumulate(crc, self._info & 0xFF)
+        if crc != buf[end] | buf[end + 1] << 8:
+            self.crc_errors += 1
+            return False
+        return True
+
+    def _deliver(self):
+        buf = self.buf
+        info = self._info
+        plen = self._plen
+        if buf[0] == STX_V2:
+            self.version = 2
+            self.seq = buf[4]
+            self.sysid = buf[5]
+            self.compid = buf[6]
+            self.msgid = buf[7] | buf[8] << 8 | buf[9] << 16
+            self.signed = bool(buf[2] & IFLAG_SIGNED)
+            if self.signed:
+                copy(self.signature, buf, (HEADER_V2 + plen + 2) << 10, SIGNATURE_LEN)
+            self.payload = self._payload_v2
+            start = HEADER_V2
+        else:
+            self.version = 1
+            self.seq = buf[2]
+            self.sysid = buf[3]
+            self.compid = buf[4]
+            self.msgid = buf[5]
+            self.signed = False
+            self.payload = self._payload_v1
+            start = HEADER_V1
+        full = info >> 16
+        if plen < full:
+            zero(buf, start + plen, start + full)
+        self.frames += 1
+        self._count_sequence()
+        self.on_frame(self.msgid, self.payload)
+
+    def _reject(self, pos, replaying):
+        # Everything after the start marker may hold the next real frame.
+        n = self._cnt
+        self._cnt = 0
+        self.bytes_discarded += 1
+        if replaying:
+            return self._rstart + 1
+        copy(self._replay, self.buf, 1 << 10, n - 1)
+        self._rpos = 0
+        self._rlen = n - 1
+        return pos
+
+    def _count_sequence(self):
+        key = self.sysid << 8 | self.compid
+        keys = self._src_key
+        for i in range(_SOURCES):
+            if keys[i] == key:
+                self.lost += (self.seq - self._src_seq[i] - 1) & 0xFF
+                self._src_seq[i] = self.seq
+                return
+        i = self._src_next
+        self._src_next = (i + 1) % _SOURCES
+        keys[i] = key
+        self._src_seq[i] = self.seq
+
+    def reset_stats(self):
+        self.frames = self.crc_errors = self.bytes_discarded = 0
+        self.unknown_ids = self.bad_frames = self.lost = 0

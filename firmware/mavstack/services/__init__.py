@@ -1,0 +1,1 @@
+"""Optional services a board composes onto an endpoint (see endpoint.Endpoint.add)."""

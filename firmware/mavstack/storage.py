@@ -1,0 +1,70 @@
+"""Files that survive power loss: write a new file, then atomically replace the old.
+
+A reader never sees a half-written file: the data goes to NAME.new, is flushed,
+and only then renamed over NAME. On boot a leftover NAME.new is discarded.
+Callers add their own header and checksum (see checksum()) to detect a corrupt file.
+"""
+import os
+
+from .kernels import crc16
+
+
+def _exists(path):
+    try:
+        os.stat(path)
+        return True
+    except OSError:
+        return False
+
+
+def makedirs(path):
+    parts = path.split("/")
+    cur = "" if parts[0] else "/"
+    for part in parts:
+        if not part:
+            continue
+        cur = cur + part if cur in ("", "/") else cur + "/" + part
+        if not _exists(cur):
+            os.mkdir(cur)
+
+
+class Storage:
+    def __init__(self, root):
+        self.root = root.rstrip("/") or "/"
+        makedirs(self.root)
+
+    def path(self, name):
+        return self.root + "/" + name
+
+    def exists(self, name):
+        return _exists(self.path(name))
+
+    def open_new(self, name):
+        """Open NAME.new for writing; commit(name) makes it NAME."""
+        return open(self.path(name) + ".new", "wb")
+
+    def commit(self, name):
+        new = self.path(name) + ".new"
+        final = self.path(name)
+        try:
+            os.rename(new, final)  # atomic on POSIX and littlefs
+        except OSError:
+            # FAT cannot rename over a file: the one non-atomic window is here.
+            os.remove(final)
+            os.rename(new, final)
+
+    def discard_new(self, name):
+        if _exists(self.path(name) + ".new"):
+            os.remove(self.path(name) + ".new")
+
+    def open(self, name, mode="rb"):
+        return open(self.path(name), mode)
+
+    def remove(self, name):
+        if self.exists(name):
+            os.remove(self.path(name))
+
+
+def checksum(data, crc=0xFFFF):
+    """CRC-16 of a bytes-like object, continuing from crc."""
+    return crc16(data, 0, len(data), crc)

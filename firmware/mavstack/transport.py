@@ -1,0 +1,225 @@
+"""Byte transports a link runs over: UDP, a tty/pty, a board's UART.
+
+Every transport has the same small, non-blocking, allocation-free face:
+    readinto(buf) -> bytes read (0 when none)
+    write(buf, n) -> bytes taken from buf[0:n] (0 when it cannot take them now)
+    bytes_per_s   what the medium carries, for pacing and stream budgets
+Specs as on the command line: udpout:HOST:PORT, udpin:ADDR:PORT, serial:DEVICE:BAUD.
+"""
+from .compat import MICROPYTHON, ticks_ms, ticks_diff
+
+UDP_BYTES_PER_S = 200000  # nominal budget for UDP links; boards may override
+_UDPIN_IDLE_MS = 5000  # a udpin link forgets a silent peer after this
+
+
+def _sockaddr(socket, host, port):
+    return socket.getaddrinfo(host, port, 0, socket.SOCK_DGRAM)[0][-1]
+
+
+class UdpTransport:
+    """udpout sends to HOST:PORT and hears its replies (the SITL convention);
+    udpin listens on ADDR:PORT and answers the peer that last spoke.
+
+    The socket is connect()ed to its peer so that reads and writes go through the
+    stream calls, which allocate nothing; udpin learns its peer with one recvfrom.
+    """
+
+    def __init__(self, mode, host, port, bytes_per_s=UDP_BYTES_PER_S):
+        import socket
+
+        self._socket = socket
+        self.mode = mode
+        self.host = host
+        self.port = port
+        self.bytes_per_s = bytes_per_s
+        self.name = "%s:%s:%d" % (mode, host, port)
+        self.peer = None
+        self._last_rx = ticks_ms()
+        self._open()
+
+    def _open(self):
+        socket = self._socket
+        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        addr = _sockaddr(socket, self.host, self.port)
+        if self.mode == "udpin":
+            try:
+                s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            except (OSError, AttributeError):
+                pass
+            s.bind(addr)
+        else:
+            s.connect(addr)
+            self.peer = addr
+        s.setblocking(False)
+        self.sock = s
+
+    def _learn_peer(self, buf):
+        # udpin without a peer yet: one allocating recvfrom, then connect to it.
+        try:
+            data, addr = self.sock.recvfrom(len(buf))
+        except OSError:
+            return 0
+        self.sock.connect(addr)
+        self.peer = addr
+        n = len(data)
+        buf[0:n] = data
+        return n
+
+    def readinto(self, buf):
+        if self.peer is None:
+            n = self._learn_peer(buf)
+        else:
+            try:
+                n = self.sock.readinto(buf) if MICROPYTHON else self.sock.recv_into(buf)
+            except OSError:  # nothing waiting, or the peer's port is closed
+                n = 0
+            if n is None:
+                n = 0
+        now = ticks_ms()
+        if n:
+            self._last_rx = now
+        elif self.mode == "udpin" and self.peer is not None:
+            if ticks_diff(now, self._last_rx) > _UDPIN_IDLE_MS:
+                self.reopen()
+        return n
+
+    def reopen(self):
+        """Forget the peer (udpin) so that the next ground station to speak is answered."""
+        self.sock.close()
+        self.peer = None
+        self._last_rx = ticks_ms()
+        self._open()
+
+    if MICROPYTHON:
+
+        def write(self, buf, n):
+            try:
+                return self.sock.write(buf, n) or 0
+            except OSError:
+                return 0
+
+    else:
+
+        def write(self, buf, n):
+            if self.peer is None:
+                return 0
+            try:
+                return self.sock.send(memoryview(buf)[:n])
+            except OSError:
+                return 0
+
+    def close(self):
+        self.sock.close()
+
+
+class SerialTransport:
+    """A tty or pty on a unix host (MicroPython's unix port or CPython), raw mode.
+
+    Reads never wait: the terminal is set to return at once with what it has
+    (VMIN=0, VTIME=0). Writes are skipped while the device cannot take them.
+    """
+
+    def __init__(self, device, baud):
+        import termios
+
+        self.device = device
+        self.baud = baud
+        self.bytes_per_s = baud // 10  # 8N1: ten bit times a byte
+        self.name = "serial:%s:%d" % (device, baud)
+        if MICROPYTHON:
+            self._f = open(device, "r+b")
+            fd = self._f.fileno()
+        else:
+            import os
+
+            fd = os.open(device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+            self._f = None
+        self.fd = fd
+        termios.setraw(fd)
+        attr = termios.tcgetattr(fd)
+        attr[6][6] = 0  # VMIN
+        attr[6][5] = 0  # VTIME
+        speed = getattr(termios, "B%d" % baud, None)
+        if speed is not None:
+            attr[4] = attr[5] = speed
+        termios.tcsetattr(fd, termios.TCSANOW, attr)
+        import select
+
+        self._poll = select.poll()
+        self._poll.register(self._f if MICROPYTHON else fd, select.POLLOUT)
+        self._POLLOUT = select.POLLOUT
+
+    if MICROPYTHON:
+
+        def readinto(self, buf):
+            try:
+                return self._f.readinto(buf) or 0
+            except OSError:
+                return 0
+
+        def write(self, buf, n):
+            for _obj, ev in self._poll.ipoll(0):
+                if ev & self._POLLOUT:
+                    try:
+                        return self._f.write(buf, n) or 0
+                    except OSError:
+                        return 0
+            return 0
+
+    else:
+
+        def readinto(self, buf):
+            import os
+
+            try:
+                return os.readv(self.fd, [buf])
+            except OSError:
+                return 0
+
+        def write(self, buf, n):
+            import os
+
+            try:
+                return os.write(self.fd, memoryview(buf)[:n])
+            except OSError:
+                return 0
+
+    def close(self):
+        if self._f is not None:
+            self._f.close()
+        else:
+            import os
+
+            os.close(self.fd)
+
+
+class UartTransport:
+    """A board's machine.UART, created by the board profile."""
+
+    def __init__(self, uart, baud, name="uart"):
+        self.uart = uart
+        self.bytes_per_s = baud // 10
+        self.name = name
+
+    def readinto(self, buf):
+        if not self.uart.any():
+            return 0
+        return self.uart.readinto(buf) or 0
+
+    def write(self, buf, n):
+        return self.uart.write(buf, n) or 0
+
+    def close(self):
+        pass
+
+
+def open_transport(spec, udp_bytes_per_s=UDP_BYTES_PER_S):
+    """Build a transport from udpout:HOST:PORT, udpin:ADDR:PORT or serial:DEVICE:BAUD."""
+    kind, _, rest = spec.partition(":")
+    if kind in ("udpout", "udpin"):
+        host, _, port = rest.rpartition(":")
+        return UdpTransport(kind, host or "0.0.0.0", int(port), udp_bytes_per_s)
+    if kind == "serial":
+        device, _, baud = rest.rpartition(":")
+        return SerialTransport(device, int(baud))
+    raise ValueError("link spec: udpout:HOST:PORT, udpin:ADDR:PORT or serial:DEVICE:BAUD")
