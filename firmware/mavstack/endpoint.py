@@ -53,7 +53,7 @@ class Endpoint:
 
     def fmt(self, msgid):
         """struct format of a message's full payload, from the dialect."""
-        return self.dialect.LAYOUT[msgid][1]
+        return self.dialect.FMT[msgid]
 
     def for_us(self, target_system, target_component):
         """True when a message's target is this vehicle (0 is broadcast)."""

@@ -41,3 +41,23 @@ def cstr_len(p, o, n):
         if p[o + i] == 0:
             return i
     return n
+
+
+def f32_to_int(p, o):
+    """A float32 field rounded to the nearest int, computed from its bits.
+
+    Command parameters are floats even when they carry integers (ids, flags);
+    this reads them without creating a float. NaN and infinities read as 0;
+    magnitudes beyond int32 saturate.
+    """
+    b = p[o] | p[o + 1] << 8 | p[o + 2] << 16 | p[o + 3] << 24
+    e = (b >> 23) & 0xFF
+    if e == 0xFF or e < 126:
+        return 0
+    if e > 157:
+        v = 0x7FFFFFFF
+    else:
+        m = (b & 0x7FFFFF) | 0x800000
+        shift = e - 150
+        v = m << shift if shift >= 0 else (m + (1 << (-shift - 1))) >> -shift
+    return -v if b & 0x80000000 else v

@@ -1,0 +1,180 @@
+"""Command protocol: COMMAND_LONG and COMMAND_INT through one dispatch table.
+
+Handlers live in endpoint.commands {MAV_CMD id: handler(cmd) -> MAV_RESULT}; any
+service or the application adds entries, by id or by seed name (handle()).
+Every command addressed to us gets exactly one final COMMAND_ACK, sent to its sender
+in the same poll; a handler that needs time returns IN_PROGRESS, keeps
+`cmd.defer()` and finishes through it. An identical re-send (retries from MAVSDK,
+or confirmation > 0) is answered with the first answer, not run twice.
+"""
+import struct
+
+from ..compat import const, ticks_ms, ticks_diff
+from ..fields import u16, i32, f32_is_nan, f32_to_int
+from ..kernels import crc16
+
+_MSG_COMMAND_INT = const(75)
+_MSG_COMMAND_LONG = const(76)
+_MSG_COMMAND_ACK = const(77)
+_COMMAND_PAYLOAD = const(35)  # COMMAND_INT, the longer of the two
+
+MAV_RESULT_ACCEPTED = const(0)
+MAV_RESULT_TEMPORARILY_REJECTED = const(1)
+MAV_RESULT_DENIED = const(2)
+MAV_RESULT_UNSUPPORTED = const(3)
+MAV_RESULT_FAILED = const(4)
+MAV_RESULT_IN_PROGRESS = const(5)
+
+_REPEAT_WINDOW_MS = const(3000)  # a re-send later than this runs again
+
+
+class Command:
+    """The command being handled (one instance, refilled per frame).
+
+    Parameters are read from the payload on demand: int(i) and nan(i) allocate
+    nothing; float(i) makes a float (fine for rare commands).
+    """
+
+    def __init__(self):
+        self.link = None
+        self.payload = None
+        self.is_int = False
+        self.command = 0
+        self.sysid = 0  # sender
+        self.compid = 0
+        self.confirmation = 0
+        self.frame = 0  # COMMAND_INT only
+        self.result_param2 = 0  # set by a handler to explain a refusal
+
+    def _offset(self, i):
+        if self.is_int and i == 5:
+            return 16
+        if self.is_int and i == 6:
+            return 20
+        return (i - 1) * 4
+
+    def int(self, i):
+        """Parameter i (1..7) rounded to an int; COMMAND_INT's x/y (5, 6) as sent."""
+        o = self._offset(i)
+        if self.is_int and (i == 5 or i == 6):
+            return i32(self.payload, o)
+        return f32_to_int(self.payload, o)
+
+    def nan(self, i):
+        """True when parameter i is NaN: 'use the default' by convention."""
+        if self.is_int and (i == 5 or i == 6):
+            return False
+        return bool(f32_is_nan(self.payload, self._offset(i)))
+
+    def float(self, i):
+        o = self._offset(i)
+        if self.is_int and (i == 5 or i == 6):
+            # Global frames carry degrees * 1e7, local frames metres * 1e4.
+            scale = 1e4 if self.frame in (1, 4, 7, 8, 9, 20, 21) else 1e7
+            return i32(self.payload, o) / scale
+        return struct.unpack_from("<f", self.payload, o)[0]
+
+    def defer(self):
+        """Keep the command for a later progress()/done(); the handler returns IN_PROGRESS."""
+        return Pending(self._service, self)
+
+
+class Pending:
+    """A long-running command: send IN_PROGRESS with progress, then the final result."""
+
+    def __init__(self, service, cmd):
+        self.service = service
+        self.link = cmd.link
+        self.command = cmd.command
+        self.sysid = cmd.sysid
+        self.compid = cmd.compid
+
+    def progress(self, percent):
+        self.service.ack(self.link, self.command, MAV_RESULT_IN_PROGRESS, percent, 0, self.sysid, self.compid)
+
+    def done(self, result, result_param2=0):
+        self.service.ack(self.link, self.command, result, 100, result_param2, self.sysid, self.compid)
+
+
+class Commands:
+    NAME = "commands"
+
+    def __init__(self):
+        self.cmd = Command()
+        self.cmd._service = self
+        self._last_key = -1  # crc of the last command's sender + payload
+        self._last_ms = 0
+        self._last_result = 0
+        self._last_param2 = 0
+        self.received = 0
+
+    def attach(self, ep):
+        self.ep = ep
+        self.handlers = ep.commands
+        self._ack_fmt = ep.fmt(_MSG_COMMAND_ACK)
+        ep.on(_MSG_COMMAND_LONG, self._on_long)
+        ep.on(_MSG_COMMAND_INT, self._on_int)
+        ep.capabilities |= 1 << 3  # MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+
+    def handle(self, command, handler):
+        """Register handler(cmd) -> MAV_RESULT for a MAV_CMD id or seed name ('NAV_TAKEOFF')."""
+        if isinstance(command, str):
+            command = command_id(command)
+        self.handlers[command] = handler
+
+    def _on_long(self, link, p):
+        self._run(link, p, False, p[30], p[31], p[32])
+
+    def _on_int(self, link, p):
+        self._run(link, p, True, p[30], p[31], 0)
+
+    def _run(self, link, p, is_int, target_system, target_component, confirmation):
+        if not self.ep.for_us(target_system, target_component):
+            return
+        self.received += 1
+        cmd = self.cmd
+        rx = link.rx
+        cmd.link = link
+        cmd.payload = p
+        cmd.is_int = is_int
+        cmd.command = u16(p, 28)
+        cmd.sysid = rx.sysid
+        cmd.compid = rx.compid
+        cmd.confirmation = confirmation
+        cmd.frame = p[32] if is_int else 0
+        cmd.result_param2 = 0
+        # A retry is the same sender and the same bytes but for the confirmation count.
+        key = crc16(p, 0, 30, rx.sysid << 8 | rx.compid) << 1 | is_int
+        now = ticks_ms()
+        if key == self._last_key and ticks_diff(now, self._last_ms) < _REPEAT_WINDOW_MS:
+            self._last_ms = now
+            self.ack(link, cmd.command, self._last_result, 0, self._last_param2, cmd.sysid, cmd.compid)
+            return
+        handler = self.handlers.get(cmd.command)
+        if handler is None:
+            result = MAV_RESULT_UNSUPPORTED
+        else:
+            result = handler(cmd)
+        self._last_key = key
+        self._last_ms = now
+        self._last_result = result
+        self._last_param2 = cmd.result_param2
+        self.ack(link, cmd.command, result, 0, cmd.result_param2, cmd.sysid, cmd.compid)
+
+    def ack(self, link, command, result, progress, result_param2, sysid, compid):
+        off = link.begin()
+        struct.pack_into(self._ack_fmt, link.txbuf, off, command, result, progress, result_param2, sysid, compid)
+        link.send(_MSG_COMMAND_ACK)
+
+
+def command_id(name):
+    """MAV_CMD id for a seed name such as 'NAV_TAKEOFF' or 'MAV_CMD_NAV_TAKEOFF'."""
+    from ..dialects import common_meta
+
+    if not name.startswith("MAV_CMD_"):
+        name = "MAV_CMD_" + name
+    return getattr(common_meta, name)
+
+
+def create(ep):
+    return ep.add(Commands())
