@@ -3,10 +3,13 @@
     python host_tools/mavgen.py XML OUT.py [--name NAME] [--messages ID_OR_NAME,...]
     python host_tools/mavgen.py --all [--check]
 
-A generated module holds only what the board needs: message and enum constants,
-CRC_EXTRA and payload lengths per message id, and each payload's struct layout.
-Descriptions stay in the XML, so the module stays small enough to import on a
-microcontroller. Runs on CPython 3.11 with the standard library only.
+Each dialect becomes two modules. OUT.py holds only what the board needs per
+frame: CRC_LEN (crc_extra and payload lengths) and FMT (the payload's struct
+format) by message id, so importing it costs little RAM. OUT_meta.py holds the
+names: MSG_* ids and enum values as const(), and each message's name and field
+names (MESSAGES), for host tools, tests and applications; mavstack.dialects.layout
+turns FMT + field names back into (name, type, array length, offset).
+Descriptions stay in the XML. Runs on CPython 3.11 with the standard library only.
 """
 import argparse
 import ast
@@ -118,6 +121,10 @@ def parse_type(text, where):
         n = int(count)
         if n < 1:
             raise MavgenError("%s: bad array length %r" % (where, count))
+        if n == 1 and text == "char":
+            # FMT spells a scalar char '1s' (MicroPython's struct has no 'c'), so
+            # char[1] would read back as a scalar: refuse rather than mislabel it.
+            raise MavgenError("%s: char[1] is not supported, use char" % where)
     if text == "uint8_t_mavlink_version":
         text = "uint8_t"  # filled in by the sender, but an ordinary uint8_t on the wire
     elif text == "array":
@@ -330,7 +337,7 @@ def committed():
 def main(argv=None):
     ap = argparse.ArgumentParser(description="Generate MicroPython MAVLink dialect modules.")
     ap.add_argument("xml", nargs="?", help="MAVLink XML definition")
-    ap.add_argument("out", nargs="?", help="module to write")
+    ap.add_argument("out", nargs="?", help="runtime module to write (OUT_meta.py goes beside it)")
     ap.add_argument("--name", help="dialect name (default: XML file name)")
     ap.add_argument("--messages", help="comma-separated message names or ids to keep")
     ap.add_argument("--all", action="store_true", help="regenerate the committed dialects")
@@ -351,18 +358,19 @@ def main(argv=None):
     stale = []
     try:
         for name, xml_path, out in jobs:
-            text = generate(xml_path, name, wanted)
-            if args.check:
-                try:
-                    with open(out, encoding="utf-8") as f:
-                        same = f.read() == text
-                except OSError:
-                    same = False
-                if not same:
-                    stale.append(os.path.relpath(out))
-            else:
-                with open(out, "w", encoding="utf-8", newline="\n") as f:
-                    f.write(text)
+            texts = generate(xml_path, name, wanted)
+            for path, text in zip((out, meta_path(out)), texts):
+                if args.check:
+                    try:
+                        with open(path, encoding="utf-8") as f:
+                            same = f.read() == text
+                    except OSError:
+                        same = False
+                    if not same:
+                        stale.append(os.path.relpath(path))
+                else:
+                    with open(path, "w", encoding="utf-8", newline="\n") as f:
+                        f.write(text)
     except (MavgenError, OSError, ET.ParseError) as e:
         print("mavgen: %s" % e, file=sys.stderr)
         return 2
