@@ -30,3 +30,46 @@ def application(endpoint):
     from simulator import Simulator
 
     return Simulator(endpoint)
+
+
+# params
+from unix_params import PARAMS  # noqa: E402  (the table: boards/unix_params.py)
+
+PARAM_ENCODING = "bytewise"  # integers in param_value: "bytewise" (QGC, MAVSDK) or "c_cast"
+PARAM_AUTOSAVE_MS = 2000  # save this long after the last change (0: on PREFLIGHT_STORAGE only)
+PARAM_SYSID = "MAV_SYS_ID"  # the read-only parameter that shows the system id
+
+
+# streams
+# (message id, Hz) sent on every link without being asked: QGroundControl and MAVSDK
+# never send REQUEST_DATA_STREAM to a generic autopilot. Ground stations change them
+# with MAV_CMD_SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM (mavstack/services/streams.py).
+# HEARTBEAT and MISSION_CURRENT come from their own services once a second.
+DEFAULT_STREAMS = (
+    (1, 1),  # SYS_STATUS
+    (2, 1),  # SYSTEM_TIME
+    (24, 2),  # GPS_RAW_INT
+    (30, 10),  # ATTITUDE
+    (31, 10),  # ATTITUDE_QUATERNION
+    (33, 5),  # GLOBAL_POSITION_INT
+    (32, 5),  # LOCAL_POSITION_NED
+    (74, 4),  # VFR_HUD
+    (62, 2),  # NAV_CONTROLLER_OUTPUT
+    (65, 2),  # RC_CHANNELS
+    (36, 2),  # SERVO_OUTPUT_RAW
+    (147, 1),  # BATTERY_STATUS
+    (245, 1),  # EXTENDED_SYS_STATE
+    (242, 0.5),  # HOME_POSITION
+)
+
+
+# missions (capacities above; mavstack/services/missions.py, mission_runner.py)
+MISSION_FRAMES = (0, 2, 3, 5, 6)  # MAV_FRAMEs the simulator flies: global, mission, relative alt
+MISSION_COMMANDS = ()  # MAV_CMDs the application flies beyond the seed's NAV/CONDITION/DO set
+MISSION_RETRY_MS = 250  # re-request a missing item after this (--set mission_retry_ms=N)
+MISSION_RETRIES = 5  # then give up with MISSION_ACK OPERATION_CANCELLED
+MISSION_TIMEOUT_MS = 5000  # ... or after this much silence
+MISSION_JUMP_SLOTS = 16  # DO_JUMP items a mission may hold (one repeat counter each)
+SIM_SPEED = 10.0  # m/s the simulator flies waypoints at (--set sim_speed=N)
+SIM_CLIMB = 3.0  # m/s up and down
+SIM_ACCEPT_RADIUS = 2.0  # metres, when a NAV_WAYPOINT's param2 gives none

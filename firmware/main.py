@@ -62,9 +62,11 @@ def build(board, opts):
     ep.options = opts.get("options", {})
     ep.storage = Storage(opts.get("storage") or board.STORAGE)
     specs = opts.get("links") or []
+    # --set udp_bytes_per_s=5760 makes UDP links pace themselves like a 57600 baud radio.
+    udp_rate = int(ep.options.get("udp_bytes_per_s") or getattr(board, "UDP_BYTES_PER_S", 200000))
     if specs:
         for spec in specs:
-            ep.add_link(open_transport(spec, getattr(board, "UDP_BYTES_PER_S", 200000)))
+            ep.add_link(open_transport(spec, udp_rate))
     else:
         for transport in board.transports():
             ep.add_link(transport)
@@ -76,12 +78,15 @@ def build(board, opts):
 
 
 def run(ep, app=None, period_ms=1):
+    # Sleeping through status.idle lets it measure the loop's load for SYS_STATUS.
+    status = ep.services.get("status")
+    idle = status.idle if status is not None else sleep_ms
     while True:
         now = ticks_ms()
         ep.poll(now)
         if app is not None:
             app.tick(now)
-        sleep_ms(period_ms)
+        idle(period_ms)
 
 
 def main(argv):

@@ -91,6 +91,9 @@ class Vehicle:
             m.mav.WIRE_PROTOCOL_VERSION = "1.0"
             m.WIRE_PROTOCOL_VERSION = "1.0"
             m.mavlink20 = lambda: False
+            # pymavlink packs by its module's protocol version: force MAVLink 1 on every send.
+            send = m.mav.send
+            m.mav.send = lambda msg, force_mavlink1=False: send(msg, force_mavlink1=True)
         self._gcs.append(m)
         if wait:
             deadline = time.time() + 20

@@ -22,10 +22,17 @@ class Encoder:
         """Payload offset in buf; the caller packs the whole payload there."""
         return HEADER_V2 if self.version == 2 else HEADER_V1
 
-    def load(self, payload, n):
-        """Copy a prepacked payload (payload[0:n]) into place; returns its offset."""
+    def load(self, payload, n, msgid=-1):
+        """Copy a prepacked payload (payload[0:n]) into place; returns its offset.
+
+        With msgid, the rest of that message's payload is zeroed: bytes left from an
+        earlier, longer frame must not go out as its tail.
+        """
         off = self.begin()
         copy(self.buf, payload, off, n)
+        info = self.crc_len.get(msgid)
+        if info is not None and n < info >> 16:
+            zero(self.buf, off + n, off + (info >> 16))
         return off
 
     def finish(self, msgid, sysid, compid):

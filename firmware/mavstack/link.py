@@ -62,5 +62,5 @@ class Link:
 
     def send_payload(self, msgid, payload, n, compid=-1):
         """Transmit a prepacked payload[0:n] (telemetry slots keep theirs ready)."""
-        self.tx.load(payload, n)
+        self.tx.load(payload, n, msgid)
         return self.send(msgid, compid)

@@ -135,7 +135,12 @@ class SerialTransport:
             fd = os.open(device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
             self._f = None
         self.fd = fd
-        termios.setraw(fd)
+        if MICROPYTHON:
+            termios.setraw(fd)
+        else:  # CPython keeps setraw in the tty module
+            import tty
+
+            tty.setraw(fd)
         attr = termios.tcgetattr(fd)
         attr[6][6] = 0  # VMIN
         attr[6][5] = 0  # VTIME

@@ -5,7 +5,13 @@ service or the application adds entries, by id or by seed name (handle()).
 Every command addressed to us gets exactly one final COMMAND_ACK, sent to its sender
 in the same poll; a handler that needs time returns IN_PROGRESS, keeps
 `cmd.defer()` and finishes through it. An identical re-send (retries from MAVSDK,
-or confirmation > 0) is answered with the first answer, not run twice.
+or confirmation > 0) of a command that ran is answered with its answer, not run
+twice; a refused command is simply evaluated again.
+
+A handler that answers with a message (REQUEST_MESSAGE, GET_HOME_POSITION, ...)
+sets `cmd.reply = msgid`: the message's producer (endpoint.producers) runs right
+after the ACK, so the ground station sees the ACK first, as the command protocol
+describes. Built in here: MAV_CMD_REQUEST_MESSAGE (512) for every producer.
 """
 import struct
 
@@ -17,6 +23,7 @@ _MSG_COMMAND_INT = const(75)
 _MSG_COMMAND_LONG = const(76)
 _MSG_COMMAND_ACK = const(77)
 _COMMAND_PAYLOAD = const(35)  # COMMAND_INT, the longer of the two
+_CMD_REQUEST_MESSAGE = const(512)
 
 MAV_RESULT_ACCEPTED = const(0)
 MAV_RESULT_TEMPORARILY_REJECTED = const(1)
@@ -45,6 +52,9 @@ class Command:
         self.confirmation = 0
         self.frame = 0  # COMMAND_INT only
         self.result_param2 = 0  # set by a handler to explain a refusal
+        self.reply = -1  # set by a handler: message id to produce after the ACK
+        self.reply_all = False  # ... on every link instead of the sender's
+        self.key = -1  # identifies re-sends of this command
 
     def _offset(self, i):
         if self.is_int and i == 5:
@@ -65,6 +75,13 @@ class Command:
         if self.is_int and (i == 5 or i == 6):
             return False
         return bool(f32_is_nan(self.payload, self._offset(i)))
+
+    def finite(self, i):
+        """True when parameter i is a number: not NaN, not an infinity."""
+        if self.is_int and (i == 5 or i == 6):
+            return True
+        o = self._offset(i)
+        return (self.payload[o + 3] & 0x7F) != 0x7F or (self.payload[o + 2] & 0x80) == 0
 
     def float(self, i):
         o = self._offset(i)
@@ -88,11 +105,15 @@ class Pending:
         self.command = cmd.command
         self.sysid = cmd.sysid
         self.compid = cmd.compid
+        self.key = cmd.key
+        self.percent = 0
 
     def progress(self, percent):
+        self.percent = percent
         self.service.ack(self.link, self.command, MAV_RESULT_IN_PROGRESS, percent, 0, self.sysid, self.compid)
 
     def done(self, result, result_param2=0):
+        self.service.settle(self.key, result, result_param2)
         self.service.ack(self.link, self.command, result, 100, result_param2, self.sysid, self.compid)
 
 
@@ -106,15 +127,22 @@ class Commands:
         self._last_ms = 0
         self._last_result = 0
         self._last_param2 = 0
+        self._last_reply = -1
+        self._last_reply_all = False
         self.received = 0
+        self.failed = 0  # handlers that raised
 
     def attach(self, ep):
         self.ep = ep
         self.handlers = ep.commands
         self._ack_fmt = ep.fmt(_MSG_COMMAND_ACK)
+        # The seed's COMMAND_ACK has only command and result.
+        self._ack_short = len(self._ack_fmt) < 4
         ep.on(_MSG_COMMAND_LONG, self._on_long)
-        ep.on(_MSG_COMMAND_INT, self._on_int)
-        ep.capabilities |= 1 << 3  # MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+        if ep.on(_MSG_COMMAND_INT, self._on_int):
+            ep.capabilities |= 1 << 3  # MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+        if _CMD_REQUEST_MESSAGE not in ep.commands:
+            ep.commands[_CMD_REQUEST_MESSAGE] = self._request_message
 
     def handle(self, command, handler):
         """Register handler(cmd) -> MAV_RESULT for a MAV_CMD id or seed name ('NAV_TAKEOFF')."""
@@ -143,37 +171,108 @@ class Commands:
         cmd.confirmation = confirmation
         cmd.frame = p[32] if is_int else 0
         cmd.result_param2 = 0
+        cmd.reply = -1
+        cmd.reply_all = False
         # A retry is the same sender and the same bytes but for the confirmation count.
-        key = crc16(p, 0, 30, rx.sysid << 8 | rx.compid) << 1 | is_int
+        key = crc16(p, 0, 30, rx.sysid << 8 | rx.compid)
+        if is_int:
+            key = crc16(p, 32, 33, key) | 0x10000  # the frame changes what x, y, z mean
+        cmd.key = key
         now = ticks_ms()
         if key == self._last_key and ticks_diff(now, self._last_ms) < _REPEAT_WINDOW_MS:
             self._last_ms = now
             self.ack(link, cmd.command, self._last_result, 0, self._last_param2, cmd.sysid, cmd.compid)
+            # The requested message may be what got lost: send it again.
+            self._send_reply(link, self._last_reply, self._last_reply_all)
             return
         handler = self.handlers.get(cmd.command)
         if handler is None:
             result = MAV_RESULT_UNSUPPORTED
         else:
-            result = handler(cmd)
-        self._last_key = key
+            try:
+                result = handler(cmd)
+            except Exception as e:  # a faulty handler must not take the vehicle down
+                self.failed += 1
+                _report(e)
+                result = MAV_RESULT_FAILED
+                cmd.reply = -1
+        # Only a command that ran is remembered; a refused one may simply be tried again.
+        ran = result == MAV_RESULT_ACCEPTED or result == MAV_RESULT_IN_PROGRESS
+        self._last_key = key if ran else -1
         self._last_ms = now
         self._last_result = result
         self._last_param2 = cmd.result_param2
+        self._last_reply = cmd.reply
+        self._last_reply_all = cmd.reply_all
         self.ack(link, cmd.command, result, 0, cmd.result_param2, cmd.sysid, cmd.compid)
+        self._send_reply(link, cmd.reply, cmd.reply_all)
+
+    def settle(self, key, result, result_param2):
+        """A deferred command finished: a re-send now gets its final result."""
+        if key == self._last_key:
+            self._last_result = result
+            self._last_param2 = result_param2
+
+    def _send_reply(self, link, msgid, all_links):
+        if msgid < 0:
+            return
+        producer = self.ep.producers.get(msgid)
+        if producer is None:
+            return
+        if all_links:
+            for other in self.ep.links:
+                producer(other)
+        else:
+            producer(link)
+
+    def _request_message(self, cmd):
+        # param1: message id; param7: 0 default / 1 requester / 2 broadcast.
+        if not cmd.finite(1):
+            return MAV_RESULT_DENIED
+        msgid = cmd.int(1)
+        if msgid not in self.ep.producers:
+            return MAV_RESULT_DENIED  # supported command, message this vehicle cannot produce
+        cmd.reply = msgid
+        cmd.reply_all = cmd.int(7) == 2
+        return MAV_RESULT_ACCEPTED
 
     def ack(self, link, command, result, progress, result_param2, sysid, compid):
         off = link.begin()
-        struct.pack_into(self._ack_fmt, link.txbuf, off, command, result, progress, result_param2, sysid, compid)
+        if self._ack_short:
+            struct.pack_into(self._ack_fmt, link.txbuf, off, command, result)
+        else:
+            struct.pack_into(self._ack_fmt, link.txbuf, off, command, result, progress, result_param2, sysid, compid)
         link.send(_MSG_COMMAND_ACK)
 
 
-def command_id(name):
-    """MAV_CMD id for a seed name such as 'NAV_TAKEOFF' or 'MAV_CMD_NAV_TAKEOFF'."""
-    from ..dialects import common_meta
+def _report(e):
+    try:
+        import sys
 
+        sys.print_exception(e)
+    except AttributeError:  # CPython
+        import traceback
+
+        traceback.print_exception(e)
+
+
+def command_id(name):
+    """MAV_CMD id for a name such as 'NAV_TAKEOFF' or 'MAV_CMD_NAV_TAKEOFF'.
+
+    Today's common set first, then the seed's (which has a few that were dropped).
+    """
     if not name.startswith("MAV_CMD_"):
         name = "MAV_CMD_" + name
-    return getattr(common_meta, name)
+    from ..dialects import common_meta
+
+    cid = getattr(common_meta, name, None)
+    if cid is None:
+        from ..dialects import seed2012_meta
+
+        cid = getattr(seed2012_meta, name, None)
+    if cid is None:
+        raise ValueError("unknown command " + name)
+    return cid
 
 
 def create(ep):

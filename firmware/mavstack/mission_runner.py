@@ -1,0 +1,284 @@
+"""Mission execution support: which item the application flies now, and what comes next.
+
+The application (the code that flies) asks the runner for the current item, does what
+it says, and calls reached() when it is done; the runner tells the ground stations
+(MISSION_ITEM_REACHED, MISSION_CURRENT), honours autocontinue, and steps over DO_JUMPs
+itself, with the seed's semantics: a DO_JUMP jumps to param1 as many times as param2
+says (-1: for ever), then falls through to the next item. Jump counters sit in a fixed
+table (one slot per DO_JUMP in the plan, MISSION_JUMP_SLOTS of them) and are reset by a
+new upload, MISSION_START and DO_SET_MISSION_CURRENT with reset.
+Everything else (NAV, CONDITION_DELAY/DISTANCE/YAW/CHANGE_ALT, DO commands) is the
+application's to carry out: runner.item has the fields decoded, runner.elapsed_ms()
+times a CONDITION_DELAY, runner.next_nav() finds the position a CONDITION_DISTANCE
+refers to.
+
+    runner = ep.services["missions"].runner
+    runner.run() / runner.pause()     entering / leaving the mode that flies the mission
+    runner.state                      MISSION_STATE: 1 no mission, 2 not started, 3 active,
+                                      4 paused, 5 complete
+    runner.current, runner.item       the item to carry out (Item, or None without a plan)
+    runner.reached()                  done with it: report, then advance if autocontinue
+    runner.waiting, runner.proceed()  held at an item without autocontinue; go on
+    runner.start(first, last)         MAV_CMD_MISSION_START (also sent by ground stations)
+    runner.set_current(seq, reset)    MISSION_SET_CURRENT, MAV_CMD_DO_SET_MISSION_CURRENT
+    runner.on_item                    hook(item) when the current item changes
+Decoding an item makes floats: that happens once per item, not per tick.
+"""
+import struct
+
+from .compat import const, ticks_ms, ticks_diff
+from .fields import f32_to_int
+from .mission_store import RECORD_SIZE
+
+NO_MISSION = const(1)  # MISSION_STATE
+NOT_STARTED = const(2)
+ACTIVE = const(3)
+PAUSED = const(4)
+COMPLETE = const(5)
+
+_CMD_DO_JUMP = const(177)
+_LOCAL_FRAMES = (1, 4, 7, 8, 9, 12, 20, 21)
+
+
+class Item:
+    """One mission item, decoded from its record."""
+
+    def __init__(self):
+        self.seq = 0
+        self.command = 0
+        self.frame = 0
+        self.autocontinue = 1
+        self.param1 = self.param2 = self.param3 = self.param4 = 0.0
+        self.x = self.y = 0  # as stored: degrees * 1e7, or metres * 1e4 in local frames
+        self.z = 0.0
+
+    def decode(self, seq, rec):
+        self.seq = seq
+        (self.param1, self.param2, self.param3, self.param4, self.x, self.y, self.z,
+         self.command, self.frame, self.autocontinue) = struct.unpack_from("<ffffiifHBB", rec, 0)
+        return self
+
+    @property
+    def local(self):
+        return self.frame in _LOCAL_FRAMES
+
+    @property
+    def lat(self):
+        """Latitude in degrees (x in metres in a local frame)."""
+        return self.x / (1e4 if self.local else 1e7)
+
+    @property
+    def lon(self):
+        return self.y / (1e4 if self.local else 1e7)
+
+    @property
+    def is_nav(self):
+        return self.command < 100 or 5000 <= self.command < 5200  # MAV_CMD_NAV_* ids
+
+    @property
+    def is_condition(self):
+        return 100 <= self.command < 160
+
+    @property
+    def is_do(self):
+        return 160 <= self.command < 250
+
+    def __repr__(self):
+        return "Item(%d cmd=%d frame=%d p=(%g,%g,%g,%g) x=%d y=%d z=%g ac=%d)" % (
+            self.seq, self.command, self.frame, self.param1, self.param2, self.param3,
+            self.param4, self.x, self.y, self.z, self.autocontinue)
+
+
+class MissionRunner:
+    def __init__(self, missions, jump_slots=16):
+        self.missions = missions
+        self.store = missions.stores[0]
+        self.current = 0
+        self.last = -1  # the last item to run (MISSION_START param2), -1: to the end
+        self.state = NOT_STARTED if self.store.count else NO_MISSION
+        self.item = None
+        self.waiting = False
+        self.running = False  # in the mode that flies the mission (run() / pause())
+        self.started_ms = ticks_ms()  # when the current item became current
+        self.on_item = None
+        self._item = Item()
+        self._rec = bytearray(RECORD_SIZE)
+        self._jump_seq = [-1] * jump_slots
+        self._jump_done = [0] * jump_slots
+        self._load(0)
+
+    @property
+    def count(self):
+        return self.store.count
+
+    @property
+    def mode(self):
+        """MISSION_CURRENT.mission_mode: 1 in the mission's mode, 2 suspended, 0 unknown."""
+        status = self.missions.ep.services.get("status")
+        if status is not None:
+            return 1 if status.auto else 2
+        return 1 if self.running else 2
+
+    def elapsed_ms(self, now=None):
+        """Time since the current item became current (CONDITION_DELAY, LOITER_TIME)."""
+        return ticks_diff(ticks_ms() if now is None else now, self.started_ms)
+
+    def read(self, seq, item=None):
+        """Any item of the plan, decoded (a new Item unless one is given); None if absent."""
+        if not self.store.read(seq, self._rec):
+            return None
+        return (item or Item()).decode(seq, self._rec)
+
+    def next_nav(self, after=-1):
+        """The first NAV item after `after` (default: the current item), or None."""
+        seq = (self.current if after < 0 else after) + 1
+        item = Item()
+        while seq < self.count:
+            if self.read(seq, item) is not None and item.is_nav:
+                return item
+            seq += 1
+        return None
+
+    # --- changes from the ground or the application --------------------------------
+    def plan_changed(self, current=0):
+        """A new plan is in force; current -1 keeps the current item if it still exists."""
+        self._reset_jumps()
+        self.last = -1
+        self.waiting = False
+        count = self.count
+        if current < 0:
+            current = self.current
+        if current >= count:
+            current = 0
+        if count == 0:
+            self.state = NO_MISSION
+            self._load(0)
+        elif self.state == ACTIVE:
+            self._settle(current)
+        else:
+            self.state = NOT_STARTED
+            self._load(current)
+        self.missions.current_changed()
+
+    def start(self, first=0, last=-1):
+        """Run the plan from `first`; stop after `last` (-1, 0 or out of range: the end)."""
+        count = self.count
+        if count == 0 or first < 0 or first >= count:
+            return False
+        self.last = last if first <= last < count and last > 0 else -1
+        self._reset_jumps()
+        self.waiting = False
+        self.running = True
+        self.state = ACTIVE
+        self._settle(first)
+        return True
+
+    def run(self):
+        """The vehicle entered the mode that flies the mission: go on from the current item."""
+        self.running = True
+        if self.state == NOT_STARTED or self.state == PAUSED:
+            self.state = ACTIVE
+            self._settle(self.current)
+        return self.state == ACTIVE
+
+    def pause(self):
+        """The vehicle left that mode; run() resumes at the current item."""
+        self.running = False
+        if self.state == ACTIVE:
+            self.state = PAUSED
+            self.missions.current_changed()
+
+    def set_current(self, seq, reset=False):
+        if seq < 0 or seq >= self.count:
+            return False
+        if reset:
+            self._reset_jumps()
+        self.waiting = False
+        if self.state == COMPLETE:
+            self.state = ACTIVE if self.running else PAUSED
+        if self.state == ACTIVE:
+            self._settle(seq)
+        else:
+            self._load(seq)
+            self.missions.current_changed()
+        return True
+
+    def reached(self):
+        """The application is done with the current item -> False if not running a mission."""
+        if self.state != ACTIVE or self.item is None or self.waiting:
+            return False
+        self.missions.send_reached(self.current)
+        if self.item.autocontinue:
+            self._advance()
+        else:
+            self.waiting = True
+        return True
+
+    def proceed(self):
+        """Go on after an item without autocontinue."""
+        if self.waiting:
+            self.waiting = False
+            self._advance()
+
+    # --- stepping -------------------------------------------------------------------
+    def _advance(self):
+        if self.current == self.last:
+            self._complete()
+        else:
+            self._settle(self.current + 1)
+
+    def _settle(self, seq):
+        """Make seq current, taking DO_JUMPs on the way."""
+        steps = 2 * self.count + 2  # jump chains without a real item in between end here
+        rec = self._rec
+        while steps:
+            steps -= 1
+            if seq >= self.count or not self.store.read(seq, rec):
+                self._complete()
+                return
+            if rec[28] | rec[29] << 8 != _CMD_DO_JUMP:
+                self._load(seq)
+                self.missions.current_changed()
+                return
+            target = f32_to_int(rec, 0)
+            repeat = f32_to_int(rec, 4)
+            slot = self._jump_slot(seq)
+            if slot >= 0 and (repeat < 0 or self._jump_done[slot] < repeat):
+                if self._jump_done[slot] < 0xFFFF:
+                    self._jump_done[slot] += 1
+                seq = target
+            else:
+                seq += 1
+        self.missions.ep.statustext(3, "Mission: DO_JUMP loop without items")
+        self._complete()
+
+    def _complete(self):
+        self.state = COMPLETE
+        self.waiting = False
+        self.missions.current_changed()
+
+    def _load(self, seq):
+        self.current = seq
+        self.started_ms = ticks_ms()
+        if self.store.read(seq, self._rec):
+            self.item = self._item.decode(seq, self._rec)
+        else:
+            self.item = None
+        if self.on_item is not None and self.item is not None:
+            self.on_item(self.item)
+
+    def _jump_slot(self, seq):
+        seqs = self._jump_seq
+        for i in range(len(seqs)):
+            if seqs[i] == seq:
+                return i
+            if seqs[i] < 0:
+                seqs[i] = seq
+                self._jump_done[i] = 0
+                return i
+        return -1  # more DO_JUMPs than slots: uploads with that many are refused
+
+    def _reset_jumps(self):
+        for i in range(len(self._jump_seq)):
+            self._jump_seq[i] = -1
+            self._jump_done[i] = 0

@@ -1,0 +1,85 @@
+"""Operator control (the seed's CHANGE_OPERATOR_CONTROL #5 / _ACK #6).
+
+With a passkey configured, only the ground station that took control with it may
+change parameters, missions, the mode or arm: services ask endpoint.allows(link),
+which looks at the sender of the frame being handled. Control is released by the
+holder (control_request 1), or when the holder's heartbeats stop for the GCS timeout,
+so that a second ground station that knows the passkey can take over a vehicle whose
+operator is gone. Without a passkey nobody needs control and every request is granted.
+"""
+import struct
+
+from ..compat import const, ticks_diff
+from ..fields import cstr_len
+from .statustext import NOTICE
+
+_MSG_CHANGE_OPERATOR_CONTROL_ACK = const(6)
+_ACK_OK = const(0)
+_ACK_WRONG_PASSKEY = const(1)
+_ACK_UNSUPPORTED_ENCRYPTION = const(2)
+_ACK_ALREADY_CONTROLLED = const(3)
+_PASSKEY_OFFSET = const(3)
+_PASSKEY_LEN = const(25)
+
+
+class Operator:
+    def __init__(self, ep, passkey, timeout_ms):
+        self.ep = ep
+        self.passkey = passkey.encode() if isinstance(passkey, str) else passkey
+        self.timeout_ms = timeout_ms
+        self.sysid = 0  # ground station in control, 0: none
+        self.seen = 0  # ticks_ms of its last heartbeat
+
+    def allows(self, link):
+        return self.sysid != 0 and link.rx.sysid == self.sysid
+
+    def heartbeat(self, sysid, now):
+        if sysid == self.sysid:
+            self.seen = now
+
+    def check(self, now):
+        if self.sysid and ticks_diff(now, self.seen) > self.timeout_ms:
+            self.sysid = 0
+            self.ep.statustext(NOTICE, b"Operator control released: GCS lost")
+
+    def request(self, link, p):
+        """A CHANGE_OPERATOR_CONTROL addressed to us -> the ACK code."""
+        sender = link.rx.sysid
+        if p[1] == 0:
+            if p[2] != 0:
+                return _ACK_UNSUPPORTED_ENCRYPTION
+            if not self._passkey_ok(p):
+                return _ACK_WRONG_PASSKEY
+            if self.sysid != 0 and self.sysid != sender:
+                return _ACK_ALREADY_CONTROLLED
+            if self.sysid != sender:
+                self.sysid = sender
+                self.ep.statustext(NOTICE, "Operator control: GCS %d" % sender)
+            self.seen = self.ep.now
+            return _ACK_OK
+        if self.sysid != 0 and self.sysid != sender:
+            return _ACK_ALREADY_CONTROLLED
+        if self.sysid:
+            self.sysid = 0
+            self.ep.statustext(NOTICE, b"Operator control released")
+        return _ACK_OK
+
+    def _passkey_ok(self, p):
+        key = self.passkey
+        n = len(key)
+        if cstr_len(p, _PASSKEY_OFFSET, _PASSKEY_LEN) != n:
+            return False
+        for i in range(n):
+            if p[_PASSKEY_OFFSET + i] != key[i]:
+                return False
+        return True
+
+
+def on_change_operator_control(ep, link, p, operator):
+    """Answer a CHANGE_OPERATOR_CONTROL (target_system, control_request, version, passkey)."""
+    if p[0] != ep.sysid or p[1] > 1:
+        return
+    ack = _ACK_OK if operator is None else operator.request(link, p)
+    off = link.begin()
+    struct.pack_into("<BBB", link.txbuf, off, link.rx.sysid, p[1], ack)
+    link.send(_MSG_CHANGE_OPERATOR_CONTROL_ACK)

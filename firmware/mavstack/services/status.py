@@ -1,0 +1,520 @@
+"""Vehicle status: identity and state (HEARTBEAT), health (SYS_STATUS), clock
+(SYSTEM_TIME), PING, STATUSTEXT, AUTOPILOT_VERSION, HOME_POSITION, ground-station
+presence per link and operator control.
+
+It also holds the vehicle state other services and the application share:
+
+    status = ep.services["status"]
+    status.armed, status.base_mode, status.custom_mode, status.system_status, status.auto
+    status.arm(True, force=False) -> MAV_RESULT   (status.reason says why it was refused)
+    status.set_mode(base_mode, custom_mode) -> MAV_RESULT
+    status.set_state(MAV_STATE_CRITICAL) / set_state(0)  (back to the life cycle)
+    status.set_home(lat_e7, lon_e7, alt_mm), status.home_set, status.home
+    status.set_sensors(present, enabled, health), status.set_battery(mv, ca, percent)
+    status.set_clock(unix_usec), status.statustext(severity, text), status.gcs_present(link)
+Hooks the application may set (None: no opinion):
+    arm_check(arm) -> None | reason | (MAV_RESULT, reason)   veto arming or disarming
+    mode_check(base_mode, custom_mode) -> same                 veto a mode
+    position() -> (lat_e7, lon_e7, alt_mm) or None              for DO_SET_HOME "current"
+    on_gcs_lost(link), on_gcs_regained(link)                   fail-safe triggers
+A command forced with 21196 (COMPONENT_ARM_DISARM param2) skips arm_check.
+
+Load (SYS_STATUS.load) is the share of wall time not spent in status.idle(ms), which
+main.py's loop sleeps through; an application running its own loop calls idle(ms),
+or add_idle(us) for time it waited elsewhere. drop_rate_comm and errors_comm come from
+the links' parsers: sequence gaps against frames received (smoothed over ~10 s), and
+frames that failed their CRC or were malformed (a running total).
+"""
+import struct
+
+from .. import VERSION
+from ..compat import const, ticks_ms, ticks_diff, ticks_add, sleep_ms
+from ..endpoint import Reboot
+from ..fields import u32
+from ..kernels import copy
+from .statustext import TextQueue, CRITICAL, NOTICE, WARNING
+from .operator import Operator, on_change_operator_control
+from . import vehicle_commands
+
+try:
+    from time import ticks_us
+except ImportError:  # CPython
+    from time import perf_counter
+
+    def ticks_us():
+        return int(perf_counter() * 1000000) & 0x3FFFFFFF
+
+
+# MAV_STATE
+MAV_STATE_BOOT = const(1)
+MAV_STATE_STANDBY = const(3)
+MAV_STATE_ACTIVE = const(4)
+MAV_STATE_CRITICAL = const(5)
+MAV_STATE_EMERGENCY = const(6)
+# MAV_MODE_FLAG
+MODE_ARMED = const(128)
+MODE_MANUAL_INPUT = const(64)
+MODE_HIL = const(32)
+MODE_STABILIZE = const(16)
+MODE_GUIDED = const(8)
+MODE_AUTO = const(4)
+MODE_TEST = const(2)
+MODE_CUSTOM = const(1)
+
+_ACCEPTED = const(0)
+_TEMPORARILY_REJECTED = const(1)
+_DENIED = const(2)
+
+_MSG_HEARTBEAT = const(0)
+_MSG_SYS_STATUS = const(1)
+_MSG_SYSTEM_TIME = const(2)
+_MSG_PING = const(4)
+_MSG_CHANGE_OPERATOR_CONTROL = const(5)
+_MSG_SET_MODE = const(11)
+_MSG_AUTOPILOT_VERSION = const(148)
+_MSG_HOME_POSITION = const(242)
+_MSG_STATUSTEXT = const(253)
+_MAV_TYPE_GCS = const(6)
+_CAP_MAVLINK2 = const(8192)
+_MAVLINK_VERSION = const(3)
+_FIRMWARE_VERSION_TYPE_DEV = const(0)
+
+# Layouts packed here; fields a dialect adds after them are zeroed first.
+_SYS_STATUS_FMT = "<IIIHHhHHHHHHb"
+_AUTOPILOT_VERSION_FMT = "<QQIIIIHH"
+_HOME_POSITION_FMT = "<iiifff4f"
+
+_PERIOD_MS = const(1000)  # HEARTBEAT, and SYS_STATUS when no streams service schedules it
+_TEXT_FRAME = const(66)  # bytes of a MAVLink 2 STATUSTEXT, for pacing on slow links
+_TEXT_SHARE = const(4)  # STATUSTEXT may use a quarter of the slowest link
+_GCS_NEVER = const(0)
+_GCS_PRESENT = const(1)
+_GCS_LOST = const(2)
+
+
+class Status:
+    NAME = "status"
+
+    def __init__(self, mav_type=2, autopilot=0, gcs_timeout_ms=5000, passkey=None, uid=0,
+                 reboot_delay_ms=100, text_slots=8):
+        self.mav_type = mav_type
+        self.autopilot = autopilot
+        self.gcs_timeout_ms = gcs_timeout_ms
+        self.passkey = passkey
+        self.uid = uid
+        self.reboot_delay_ms = reboot_delay_ms
+        self.armed = False
+        self.mode = 0  # MAV_MODE_FLAG bits but SAFETY_ARMED
+        self.base_mode = 0
+        self.custom_mode = 0
+        self.system_status = MAV_STATE_BOOT
+        self.mode_flags_supported = MODE_MANUAL_INPUT | MODE_STABILIZE | MODE_GUIDED | MODE_AUTO | MODE_CUSTOM
+        self._override = 0  # a MAV_STATE the application set, 0: follow the life cycle
+        self._initialised = False
+        self.reason = None
+        self.arm_check = None
+        self.mode_check = None
+        self.position = None
+        self.on_gcs_lost = None
+        self.on_gcs_regained = None
+        # SYS_STATUS figures
+        self.sensors_present = 0
+        self.sensors_enabled = 0
+        self.sensors_health = 0
+        self.voltage_mv = 0xFFFF  # UINT16_MAX: not measured
+        self.current_ca = -1
+        self.battery_remaining = -1
+        self.load = 0
+        self.drop_rate_comm = 0
+        self.errors_comm = 0
+        # Home
+        self.home_set = False
+        self.home_lat = 0
+        self.home_lon = 0
+        self.home_alt = 0
+        self._home_changed = False
+        self._one = 1.0  # quaternion w, made once
+        # Clock
+        self.uptime_ms = 0
+        self._last_ms = ticks_ms()
+        self._clock_usec = 0  # unix time at _clock_at (uptime ms), 0: unknown
+        self._clock_at = 0
+        self._clock_from_app = False
+        # Load and link figures, per window
+        self._win_us = ticks_us()
+        self._idle_us = 0
+        self._idle_seen = False
+        self._frames = 0
+        self._lost = 0
+        self._acc_frames = 0
+        self._acc_lost = 0
+        self._next_period = 0
+        self._next_text = 0
+        self._text_gap_ms = 0
+        self._reboot = 0  # 1 reboot, 2 shutdown once _reboot_at is reached
+        self._reboot_at = 0
+        self.texts = TextQueue(text_slots)
+        self.operator = None
+        self._gcs_seen = []
+        self._gcs_state = bytearray(0)
+
+    # --- wiring ---------------------------------------------------------------
+    def attach(self, ep):
+        self.ep = ep
+        now = ep.now
+        self._last_ms = now
+        self._next_period = now
+        self._next_text = now
+        self._links_changed()
+        ep.capabilities |= _CAP_MAVLINK2
+        self._sw_version = _version_word(VERSION, _FIRMWARE_VERSION_TYPE_DEV)
+        self._os_version = _os_version()
+        ep.on(_MSG_HEARTBEAT, self._on_heartbeat)
+        ep.on(_MSG_PING, self._on_ping)
+        ep.on(_MSG_SYSTEM_TIME, self._on_system_time)
+        ep.on(_MSG_SET_MODE, self._on_set_mode)
+        ep.on(_MSG_CHANGE_OPERATOR_CONTROL, self._on_operator_control)
+        ep.producers[_MSG_HEARTBEAT] = self.send_heartbeat
+        ep.producers[_MSG_SYS_STATUS] = self.send_sys_status
+        ep.producers[_MSG_SYSTEM_TIME] = self.send_system_time
+        if ep.has(_MSG_AUTOPILOT_VERSION) and ep.fmt(_MSG_AUTOPILOT_VERSION).startswith(_AUTOPILOT_VERSION_FMT):
+            ep.producers[_MSG_AUTOPILOT_VERSION] = self.send_autopilot_version
+        if ep.has(_MSG_HOME_POSITION) and ep.fmt(_MSG_HOME_POSITION).startswith(_HOME_POSITION_FMT):
+            ep.producers[_MSG_HOME_POSITION] = self.send_home_position
+        if self.passkey:
+            self.operator = Operator(ep, self.passkey, self.gcs_timeout_ms)
+            ep.operator = self.operator
+        vehicle_commands.install(ep, self)
+        # Announce BOOT at once: a ground station already listening sees the vehicle come up.
+        for link in ep.links:
+            self.send_heartbeat(link)
+
+    def _links_changed(self):
+        # Rare (start-up): size the per-link tables and the STATUSTEXT pacing.
+        links = self.ep.links
+        while len(self._gcs_seen) < len(links):
+            self._gcs_seen.append(0)
+            self._gcs_state = self._gcs_state + b"\0"
+        slowest = 0
+        for link in links:
+            if slowest == 0 or link.bytes_per_s < slowest:
+                slowest = link.bytes_per_s
+        self._text_gap_ms = _TEXT_FRAME * 1000 * _TEXT_SHARE // slowest if slowest else 0
+
+    # --- state ----------------------------------------------------------------
+    @property
+    def auto(self):
+        return bool(self.mode & MODE_AUTO)
+
+    @property
+    def home(self):
+        return (self.home_lat, self.home_lon, self.home_alt) if self.home_set else None
+
+    def _update(self):
+        self.base_mode = self.mode | (MODE_ARMED if self.armed else 0)
+        if self._override:
+            self.system_status = self._override
+        elif not self._initialised:
+            self.system_status = MAV_STATE_BOOT
+        else:
+            self.system_status = MAV_STATE_ACTIVE if self.armed else MAV_STATE_STANDBY
+
+    def set_state(self, state):
+        """Report a MAV_STATE (e.g. CRITICAL, EMERGENCY) until set_state(0)."""
+        self._override = state
+        self._update()
+
+    def arm(self, arm, force=False):
+        """Arm (True) or disarm -> MAV_RESULT; on refusal self.reason says why."""
+        self.reason = None
+        arm = bool(arm)
+        if arm == self.armed:
+            return _ACCEPTED
+        if not force and self.arm_check is not None:
+            result = self._veto(self.arm_check(arm), b"Arm: " if arm else b"Disarm: ")
+            if result != _ACCEPTED:
+                return result
+        self.armed = arm
+        self._update()
+        return _ACCEPTED
+
+    def set_mode(self, base_mode, custom_mode=0):
+        """Change the mode flags (SAFETY_ARMED is ignored: arming is its own command)."""
+        self.reason = None
+        flags = base_mode & 0x7F
+        if custom_mode:
+            flags |= MODE_CUSTOM
+        if flags & ~self.mode_flags_supported:
+            self.reason = "mode flags 0x%02x not supported" % (flags & ~self.mode_flags_supported)
+            self.statustext(WARNING, "Mode: " + self.reason)
+            return _DENIED
+        if self.mode_check is not None:
+            result = self._veto(self.mode_check(flags, custom_mode), b"Mode: ")
+            if result != _ACCEPTED:
+                return result
+        self.mode = flags
+        self.custom_mode = custom_mode
+        self._update()
+        return _ACCEPTED
+
+    def _veto(self, answer, prefix):
+        if answer is None:
+            return _ACCEPTED
+        if isinstance(answer, tuple):
+            result, reason = answer
+        else:
+            result, reason = _DENIED, answer
+        if result == _ACCEPTED:
+            return _ACCEPTED
+        self.reason = reason
+        if reason:
+            self.statustext(CRITICAL, prefix.decode() + reason)
+        return result
+
+    def set_home(self, lat_e7, lon_e7, alt_mm):
+        self.home_lat = int(lat_e7)
+        self.home_lon = int(lon_e7)
+        self.home_alt = int(alt_mm)
+        self.home_set = True
+        self._home_changed = True  # ground stations learn it from HOME_POSITION
+
+    def set_sensors(self, present, enabled, health):
+        """MAV_SYS_STATUS_SENSOR bitmasks."""
+        self.sensors_present = present
+        self.sensors_enabled = enabled
+        self.sensors_health = health
+
+    def set_battery(self, voltage_mv, current_ca=-1, remaining=-1):
+        self.voltage_mv = voltage_mv
+        self.current_ca = current_ca
+        self.battery_remaining = remaining
+
+    def set_clock(self, unix_usec):
+        """The time of day, from an RTC or GPS; until then SYSTEM_TIME says 0 (unknown)."""
+        self._clock_usec = unix_usec
+        self._clock_at = self.uptime_ms
+        self._clock_from_app = True
+
+    def unix_usec(self):
+        if not self._clock_usec:
+            return 0
+        return self._clock_usec + (self.uptime_ms - self._clock_at) * 1000
+
+    def statustext(self, severity, text):
+        self.texts.put(severity, text)
+
+    def gcs_present(self, link):
+        i = link.index
+        return i < len(self._gcs_state) and self._gcs_state[i] == _GCS_PRESENT
+
+    def reboot(self, action=1):
+        """Reboot (1) or shut down (2) after reboot_delay_ms, so the ACK gets out first."""
+        self._reboot = action
+        self._reboot_at = ticks_add(self.ep.now, self.reboot_delay_ms)
+        self.statustext(NOTICE, b"Rebooting" if action == 1 else b"Shutting down")
+
+    def idle(self, ms):
+        """Sleep ms, counted as idle time for SYS_STATUS.load."""
+        t = ticks_us()
+        sleep_ms(ms)
+        self._idle_us += ticks_diff(ticks_us(), t)
+        self._idle_seen = True
+
+    def add_idle(self, us):
+        self._idle_us += us
+        self._idle_seen = True
+
+    # --- periodic work --------------------------------------------------------
+    def tick(self, now):
+        ep = self.ep
+        self.uptime_ms += ticks_diff(now, self._last_ms)
+        self._last_ms = now
+        if not self._initialised:
+            self._initialised = True
+            self._update()
+        if len(self._gcs_state) < len(ep.links):
+            self._links_changed()
+        if ticks_diff(now, self._next_period) >= 0:
+            self._next_period = ticks_add(self._next_period, _PERIOD_MS)
+            if ticks_diff(now, self._next_period) >= 0:  # fell behind: keep the rate, not the backlog
+                self._next_period = ticks_add(now, _PERIOD_MS)
+            self._measure()
+            streams = ep.services.get("streams")
+            for link in ep.links:
+                self.send_heartbeat(link)
+                if streams is None:
+                    self.send_sys_status(link)
+        self._check_gcs(now)
+        if self._home_changed:
+            self._home_changed = False
+            for link in ep.links:
+                self.send_home_position(link)
+        if self.texts.count and ticks_diff(now, self._next_text) >= 0:
+            self._next_text = ticks_add(now, self._text_gap_ms)
+            for link in ep.links:
+                self.texts.send(link)
+            self.texts.pop()
+        if self._reboot and ticks_diff(now, self._reboot_at) >= 0:
+            action = self._reboot
+            self._reboot = 0
+            if action == 2:
+                ep.board.shutdown()
+            raise Reboot()
+
+    def _measure(self):
+        # Once a second: loop load and link figures for SYS_STATUS.
+        t = ticks_us()
+        wall = ticks_diff(t, self._win_us)
+        if self._idle_seen and wall > 0:
+            busy = (wall - self._idle_us) * 1000 // wall
+            self.load = 0 if busy < 0 else 1000 if busy > 1000 else busy
+        self._win_us = t
+        self._idle_us = 0
+        self._idle_seen = False
+        frames = lost = errors = 0
+        for link in self.ep.links:
+            rx = link.rx
+            frames += rx.frames
+            lost += rx.lost
+            errors += rx.crc_errors + rx.bad_frames
+        df = frames - self._frames
+        dl = lost - self._lost
+        self._frames = frames
+        self._lost = lost
+        if df >= 0 and dl >= 0:  # negative after a stats reset: skip that window
+            self._acc_frames += df - (self._acc_frames >> 3)
+            self._acc_lost += dl - (self._acc_lost >> 3)
+        total = self._acc_frames + self._acc_lost
+        self.drop_rate_comm = self._acc_lost * 10000 // total if total else 0
+        self.errors_comm = errors if errors < 0xFFFF else 0xFFFF
+
+    def _check_gcs(self, now):
+        timeout = self.gcs_timeout_ms
+        seen = self._gcs_seen
+        state = self._gcs_state
+        for link in self.ep.links:
+            i = link.index
+            if state[i] == _GCS_PRESENT and ticks_diff(now, seen[i]) > timeout:
+                state[i] = _GCS_LOST
+                if self.on_gcs_lost is not None:
+                    self.on_gcs_lost(link)
+        if self.operator is not None:
+            self.operator.check(now)
+
+    # --- incoming -------------------------------------------------------------
+    def _on_heartbeat(self, link, p):
+        now = self.ep.now
+        if self.operator is not None:
+            self.operator.heartbeat(link.rx.sysid, now)
+        if p[4] != _MAV_TYPE_GCS:
+            return
+        i = link.index
+        if i >= len(self._gcs_state):
+            return  # a link added after start-up; tick() sizes the tables
+        self._gcs_seen[i] = now
+        if self._gcs_state[i] != _GCS_PRESENT:
+            self._gcs_state[i] = _GCS_PRESENT
+            if self.on_gcs_regained is not None:
+                self.on_gcs_regained(link)
+
+    def _on_ping(self, link, p):
+        # target 0/0 is a request; anything else is someone's answer.
+        if p[12] or p[13]:
+            return
+        off = link.begin()
+        buf = link.txbuf
+        copy(buf, p, off, 12)  # time_usec and seq as received
+        buf[off + 12] = link.rx.sysid
+        buf[off + 13] = link.rx.compid
+        link.send(_MSG_PING)
+
+    def _on_system_time(self, link, p):
+        # A ground station's clock is better than none; the application's wins.
+        if self._clock_from_app:
+            return
+        usec = u32(p, 0) | u32(p, 4) << 32
+        if usec:
+            self._clock_usec = usec
+            self._clock_at = self.uptime_ms
+
+    def _on_set_mode(self, link, p):
+        if p[4] != self.ep.sysid:
+            return
+        if not self.ep.allows(link):
+            self.statustext(WARNING, b"Mode: GCS not in control")
+            return
+        self.set_mode(p[5], u32(p, 0))
+
+    def _on_operator_control(self, link, p):
+        on_change_operator_control(self.ep, link, p, self.operator)
+
+    # --- producers: send(link) -> bool -----------------------------------------
+    def send_heartbeat(self, link):
+        off = link.begin()
+        struct.pack_into("<IBBBBB", link.txbuf, off, self.custom_mode, self.mav_type, self.autopilot,
+                         self.base_mode, self.system_status, _MAVLINK_VERSION)
+        return link.send(_MSG_HEARTBEAT)
+
+    def send_sys_status(self, link):
+        off = link.tx.clear(link.tx.crc_len[_MSG_SYS_STATUS] >> 16)
+        struct.pack_into(_SYS_STATUS_FMT, link.txbuf, off, self.sensors_present, self.sensors_enabled,
+                         self.sensors_health, self.load, self.voltage_mv, self.current_ca,
+                         self.drop_rate_comm, self.errors_comm, self.texts.dropped & 0xFFFF, 0, 0, 0,
+                         self.battery_remaining)
+        return link.send(_MSG_SYS_STATUS)
+
+    def send_system_time(self, link):
+        off = link.begin()
+        struct.pack_into("<QI", link.txbuf, off, self.unix_usec(), self.uptime_ms & 0xFFFFFFFF)
+        return link.send(_MSG_SYSTEM_TIME)
+
+    def send_autopilot_version(self, link):
+        off = link.tx.clear(link.tx.crc_len[_MSG_AUTOPILOT_VERSION] >> 16)
+        struct.pack_into(_AUTOPILOT_VERSION_FMT, link.txbuf, off, self.ep.capabilities, self.uid,
+                         self._sw_version, 0, self._os_version, 0, 0, 0)
+        return link.send(_MSG_AUTOPILOT_VERSION)
+
+    def send_home_position(self, link):
+        if not self.home_set:
+            return False
+        off = link.tx.clear(link.tx.crc_len[_MSG_HOME_POSITION] >> 16)
+        struct.pack_into(_HOME_POSITION_FMT, link.txbuf, off, self.home_lat, self.home_lon, self.home_alt,
+                         0, 0, 0, self._one, 0, 0, 0)
+        return link.send(_MSG_HOME_POSITION)
+
+
+def _version_word(v, kind):
+    return v[0] << 24 | v[1] << 16 | v[2] << 8 | kind
+
+
+def _os_version():
+    import sys
+
+    return _version_word(sys.implementation.version, _FIRMWARE_VERSION_TYPE_DEV)
+
+
+def _uid(board, sysid):
+    uid = getattr(board, "UID", 0)
+    if not uid:
+        try:
+            import machine
+
+            uid = int.from_bytes(machine.unique_id()[:8], "little")
+        except (ImportError, AttributeError):
+            uid = 0
+    return uid or sysid
+
+
+def create(ep):
+    board = getattr(ep, "board", None)
+    options = getattr(ep, "options", None) or {}
+    passkey = options.get("passkey", getattr(board, "OPERATOR_PASSKEY", None))
+    status = Status(
+        mav_type=getattr(board, "MAV_TYPE", 2),
+        autopilot=getattr(board, "MAV_AUTOPILOT", 0),
+        gcs_timeout_ms=int(options.get("gcs_timeout_ms", getattr(board, "GCS_TIMEOUT_MS", 5000))),
+        passkey=passkey or None,
+        uid=_uid(board, ep.sysid),
+        reboot_delay_ms=getattr(board, "REBOOT_DELAY_MS", 100),
+    )
+    return ep.add(status)

@@ -1,0 +1,383 @@
+"""Telemetry streams: which message goes out on which link, how often, within the
+link's bandwidth.
+
+Every link keeps, per message, the interval in force: the board's default
+(board.DEFAULT_STREAMS, ((msgid, hz), ...), sent without being asked), or what a
+ground station set with MAV_CMD_SET_MESSAGE_INTERVAL (511; -1 disables, 0 restores
+the default; param7 response target 0 or 1: the requester's link, 2: every link),
+or with the seed's REQUEST_DATA_STREAM (#66; req_message_rate in Hz, start_stop;
+answered with DATA_STREAM #67). MAV_CMD_GET_MESSAGE_INTERVAL (510) is answered
+with MESSAGE_INTERVAL (#244) carrying the interval actually achieved.
+Messages come from endpoint.producers (telemetry slots, status, missions).
+
+The seed's data stream groups, after ArduPilot's historical grouping (a message
+belongs to one group; ALL (0) sets every group):
+
+    1  RAW_SENSORS      RAW_IMU, SCALED_IMU, RAW_PRESSURE, SCALED_PRESSURE, HIGHRES_IMU
+    2  EXTENDED_STATUS  SYS_STATUS, GPS_RAW_INT, GPS_STATUS, MISSION_CURRENT,
+                        NAV_CONTROLLER_OUTPUT, EXTENDED_SYS_STATE
+    3  RC_CHANNELS      RC_CHANNELS_RAW, RC_CHANNELS, SERVO_OUTPUT_RAW
+    4  RAW_CONTROLLER   RC_CHANNELS_SCALED
+    6  POSITION         GLOBAL_POSITION_INT, LOCAL_POSITION_NED
+    10 EXTRA1           ATTITUDE, ATTITUDE_QUATERNION
+    11 EXTRA2           VFR_HUD
+    12 EXTRA3           SYSTEM_TIME, BATTERY_STATUS, OPTICAL_FLOW
+
+Scheduling: each stream has a deadline in ticks_ms; after a send the deadline
+moves on by the interval (kept in microseconds, remainder carried), not from
+"now", so the long-run rate is exact. A stream that fell behind catches up by one
+message on the next tick; one that fell a whole interval behind (a stall) lets the
+missed ones go instead of bursting. New streams start at staggered phases.
+
+Bandwidth: each link has link.bytes_per_s. A credit (token bucket) is filled at
+that rate and drained by every byte the link sends, scheduled or not, so
+priority traffic (HEARTBEAT, COMMAND_ACK, PARAM_VALUE, mission replies, sent by
+their services outside the scheduler) goes first and the total never exceeds the
+budget. Once a second the streams are fitted to what is left: when requests
+exceed it, every interval is stretched by the same factor (each message keeps the
+same share of what it asked for), and that achieved interval is what
+MESSAGE_INTERVAL reports. A link that cannot take a frame (link.send False) is
+left until the next tick; the loop never waits.
+"""
+import struct
+
+from ..compat import const, ticks_diff, ticks_add
+from ..fields import u16
+from ..telemetry import Telemetry
+
+_MSG_REQUEST_DATA_STREAM = const(66)
+_MSG_DATA_STREAM = const(67)
+_MSG_MESSAGE_INTERVAL = const(244)
+_CMD_GET_MESSAGE_INTERVAL = const(510)
+_CMD_SET_MESSAGE_INTERVAL = const(511)
+_CMD_REQUEST_MESSAGE = const(512)
+_ACCEPTED = const(0)
+_DENIED = const(2)
+
+_RESCALE_MS = const(1000)  # how often streams are fitted to the measured budget
+_BURST_MS = const(50)  # credit a quiet link may save up, in ms of its capacity
+_MIN_BURST = const(300)  # bytes: a full MAVLink 2 frame always fits
+_MARGIN_DIV = const(20)  # keep 1/20 of the budget for priority bursts
+_FLOOR_DIV = const(10)  # streams keep at least 1/10 of the budget in the fit
+_MIN_INTERVAL_US = const(1000)  # one send per main-loop tick at most
+_MAX_INTERVAL_US = const(1000000000)
+_PHASE_STEP_MS = const(37)
+
+# (MAV_DATA_STREAM, message ids); see the table above.
+GROUPS = (
+    (1, (27, 26, 28, 29, 105)),
+    (2, (1, 24, 25, 42, 62, 245)),
+    (3, (35, 65, 36)),
+    (4, (34,)),
+    (6, (33, 32)),
+    (10, (30, 31)),
+    (11, (74,)),
+    (12, (2, 147, 100)),
+)
+
+
+def group(stream_id):
+    """Message ids of a MAV_DATA_STREAM (0: all of them), or None if unknown."""
+    if stream_id == 0:
+        ids = []
+        for _, members in GROUPS:
+            ids.extend(members)
+        return ids
+    for sid, members in GROUPS:
+        if sid == stream_id:
+            return members
+    return None
+
+
+class Stream:
+    """One message on one link."""
+
+    def __init__(self, msgid, send, cost):
+        self.msgid = msgid
+        self.send = send  # producer: send(link) -> bool
+        self.cost = cost  # bytes on the wire per frame (last measured)
+        self.default_us = 0  # board default interval, 0: none
+        self.requested_us = 0  # 0: default, -1: disabled, > 0: set by a ground station
+        self.interval_us = 0  # in force (requested or default), 0: off
+        self.achieved_us = 0  # after fitting to the budget
+        self.step_ms = 0
+        self.due = 0
+        self.frac = 0  # microseconds carried between deadlines
+        self.live = True  # the producer had something to send last time
+        self.sent = 0
+
+
+class LinkStreams:
+    """The streams of one link and its bandwidth account."""
+
+    def __init__(self, link, now):
+        self.link = link
+        self.streams = []
+        self.by_id = {}
+        self.credit = 0  # in 1/1000 bytes
+        self.last = now
+        self.last_tx = link.tx_bytes
+        self.start = 0  # first stream looked at next tick (rotates, for fairness)
+        self.win_start = now  # window over which priority traffic is measured
+        self.win_tx = link.tx_bytes
+        self.win_stream = 0
+        self.priority_bps = 0
+
+
+class Streams:
+    NAME = "streams"
+
+    def __init__(self, defaults=()):
+        self.defaults = defaults  # ((msgid, hz), ...)
+        self.links = []
+        self._phase = 0
+        self._rescale_at = 0
+
+    def attach(self, ep):
+        self.ep = ep
+        tm = getattr(ep, "telemetry", None)
+        if tm is None:
+            tm = ep.telemetry = Telemetry(ep)
+        self.telemetry = tm
+        self._rescale_at = ep.now
+        ep.on(_MSG_REQUEST_DATA_STREAM, self._on_request_data_stream)
+        ep.commands[_CMD_SET_MESSAGE_INTERVAL] = self._on_set_interval
+        if ep.has(_MSG_MESSAGE_INTERVAL):
+            self._interval_fmt = ep.fmt(_MSG_MESSAGE_INTERVAL)
+            ep.commands[_CMD_GET_MESSAGE_INTERVAL] = self._on_get_interval
+            ep.producers[_MSG_MESSAGE_INTERVAL] = self.send_message_interval
+        self._sync_links(ep.now)
+
+    # --- configuration (ground-station paced; may allocate) -----------------------
+
+    def _sync_links(self, now):
+        for link in self.ep.links[len(self.links):]:
+            ls = LinkStreams(link, now)
+            self.links.append(ls)
+            for msgid, hz in self.defaults:
+                s = self._stream(ls, msgid)
+                if s is not None:
+                    s.default_us = int(1000000 / hz) if hz > 0 else 0
+                    self._apply(ls, s, now)
+            self._fit(ls)
+
+    def _stream(self, ls, msgid, create=True):
+        s = ls.by_id.get(msgid)
+        if s is None and create and self.ep.has(msgid):
+            info = self.ep.dialect.CRC_LEN[msgid]
+            s = Stream(msgid, self.ep.producers.get(msgid), (info >> 16) + 12)
+            ls.by_id[msgid] = s
+            ls.streams.append(s)
+        return s
+
+    def _apply(self, ls, s, now):
+        want = s.requested_us if s.requested_us else s.default_us
+        if want < 0:
+            want = 0
+        elif 0 < want < _MIN_INTERVAL_US:
+            want = _MIN_INTERVAL_US
+        if want == s.interval_us:
+            return
+        s.interval_us = want
+        s.achieved_us = want
+        s.step_ms = want // 1000
+        if want:
+            # Staggered start so that streams set together do not fall due together.
+            s.due = ticks_add(now, self._phase % (s.step_ms + 1))
+            s.frac = 0
+            self._phase += _PHASE_STEP_MS
+
+    def set_interval(self, link, msgid, interval_us):
+        """Interval for msgid on a link: > 0 us, 0 the board default, -1 off.
+        Returns False if the endpoint cannot produce that message."""
+        ls = self._links_state(link)
+        if msgid not in self.ep.producers or msgid == _MSG_MESSAGE_INTERVAL or interval_us < -1:
+            return False
+        s = self._stream(ls, msgid)
+        if s is None:
+            return False
+        if s.send is None:
+            s.send = self.ep.producers[msgid]
+        if interval_us > _MAX_INTERVAL_US:
+            interval_us = _MAX_INTERVAL_US
+        s.requested_us = interval_us
+        self._apply(ls, s, self.ep.now)
+        self._fit(ls)
+        return True
+
+    def set_rate(self, link, msgid, hz):
+        """set_interval in Hz (0 switches the message off)."""
+        return self.set_interval(link, msgid, int(1000000 / hz) if hz > 0 else -1)
+
+    def interval(self, link, msgid):
+        """As MESSAGE_INTERVAL reports it: the achieved interval in us, -1 when the
+        message is not streamed, 0 when the endpoint cannot produce it."""
+        if msgid not in self.ep.producers:
+            return 0
+        s = self._stream(self._links_state(link), msgid, False)
+        if s is None or s.interval_us <= 0:
+            return -1
+        return s.achieved_us
+
+    def _links_state(self, link):
+        if link.index >= len(self.links):
+            self._sync_links(self.ep.now)
+        return self.links[link.index]
+
+    # --- protocol handlers -----------------------------------------------------------
+
+    def _on_set_interval(self, cmd):
+        msgid = cmd.int(1)
+        interval = cmd.int(2)
+        if cmd.int(7) == 2:
+            ok = True
+            for link in self.ep.links:
+                ok = self.set_interval(link, msgid, interval) and ok
+        else:
+            ok = self.set_interval(cmd.link, msgid, interval)
+        return _ACCEPTED if ok else _DENIED
+
+    def _on_get_interval(self, cmd):
+        cmd.reply = _MSG_MESSAGE_INTERVAL  # sent right after the ACK
+        return _ACCEPTED
+
+    def send_message_interval(self, link):
+        """Producer of MESSAGE_INTERVAL, in answer to GET_MESSAGE_INTERVAL (param1: the
+        message) or REQUEST_MESSAGE 244 (param2: the message)."""
+        commands = self.ep.services.get("commands")
+        if commands is None:
+            return False
+        cmd = commands.cmd
+        if cmd.command == _CMD_GET_MESSAGE_INTERVAL:
+            msgid = cmd.int(1)
+        elif cmd.command == _CMD_REQUEST_MESSAGE and cmd.int(1) == _MSG_MESSAGE_INTERVAL:
+            msgid = cmd.int(2)
+        else:
+            return False
+        off = link.begin()
+        struct.pack_into(self._interval_fmt, link.txbuf, off, self.interval(link, msgid), msgid)
+        return link.send(_MSG_MESSAGE_INTERVAL)
+
+    def _on_request_data_stream(self, link, p):
+        # REQUEST_DATA_STREAM: req_message_rate, target_system, target_component, req_stream_id, start_stop
+        if not self.ep.for_us(p[2], p[3]):
+            return
+        rate = u16(p, 0)
+        stream_id = p[4]
+        on = 1 if p[5] and rate else 0
+        ids = group(stream_id)
+        if ids is not None:
+            for msgid in ids:
+                if msgid in self.ep.producers:
+                    self.set_interval(link, msgid, 1000000 // rate if on else -1)
+        else:
+            on = 0
+        off = link.begin()
+        struct.pack_into(self.ep.fmt(_MSG_DATA_STREAM), link.txbuf, off, rate if on else 0, stream_id, on)
+        link.send(_MSG_DATA_STREAM)
+
+    # --- the scheduler (every tick; allocation-free) -------------------------------
+
+    def tick(self, now):
+        self.telemetry.clock(now)
+        if len(self.links) != len(self.ep.links):
+            self._sync_links(now)
+        d = ticks_diff(now, self._rescale_at)
+        if d >= 0 or d < -_RESCALE_MS:  # due, or the clock jumped
+            self._rescale_at = ticks_add(now, _RESCALE_MS)
+            for ls in self.links:
+                self._measure(ls, now)
+                self._fit(ls)
+        for ls in self.links:
+            self._run(ls, now)
+
+    def _measure(self, ls, now):
+        """Bytes per second the link sent outside the scheduler since the last look."""
+        span = ticks_diff(now, ls.win_start)
+        tx = ls.link.tx_bytes
+        if span > 0:
+            other = tx - ls.win_tx - ls.win_stream
+            ls.priority_bps = (other if other > 0 else 0) * 1000 // span
+        ls.win_start = now
+        ls.win_tx = tx
+        ls.win_stream = 0
+
+    def _fit(self, ls):
+        """Stretch every interval by the same factor when requests exceed the budget."""
+        bps = ls.link.bytes_per_s
+        avail = bps - ls.priority_bps - bps // _MARGIN_DIV
+        if avail < bps // _FLOOR_DIV:
+            avail = bps // _FLOOR_DIV
+        producers = self.ep.producers
+        demand = 0
+        for s in ls.streams:
+            if s.send is None:
+                s.send = producers.get(s.msgid)
+            if s.interval_us > 0 and s.live and s.send is not None:
+                demand += s.cost * 1000000 // s.interval_us
+        for s in ls.streams:
+            if s.interval_us > 0 and demand > avail:
+                s.achieved_us = (s.interval_us * demand + avail - 1) // avail
+            else:
+                s.achieved_us = s.interval_us
+            s.step_ms = s.achieved_us // 1000
+
+    def _run(self, ls, now):
+        link = ls.link
+        bps = link.bytes_per_s
+        dt = ticks_diff(now, ls.last)
+        ls.last = now
+        credit = ls.credit
+        if dt > 0:
+            credit += bps * dt
+        tx = link.tx_bytes
+        credit -= (tx - ls.last_tx) * 1000  # everything sent since, priority traffic too
+        ls.last_tx = tx
+        cap = bps * _BURST_MS
+        if cap < _MIN_BURST * 1000:
+            cap = _MIN_BURST * 1000
+        if credit > cap:
+            credit = cap
+        ls.credit = credit
+        streams = ls.streams
+        n = len(streams)
+        if n == 0 or ls.credit <= 0:
+            return
+        i = ls.start
+        ls.start = i + 1 if i + 1 < n else 0
+        for _ in range(n):
+            s = streams[i]
+            i = i + 1 if i + 1 < n else 0
+            if s.achieved_us <= 0 or s.send is None:
+                continue
+            late = ticks_diff(now, s.due)
+            if late < 0:
+                if late < -2 * s.step_ms - 2:  # the clock jumped back: start again
+                    s.due = now
+                continue
+            before = link.tx_bytes
+            dropped = link.tx_dropped
+            if s.send(link):
+                sent = link.tx_bytes - before
+                s.cost = sent
+                s.sent += 1
+                s.live = True
+                ls.credit -= sent * 1000
+                ls.last_tx = link.tx_bytes
+                ls.win_stream += sent
+            elif link.tx_dropped != dropped:
+                return  # the link cannot take more now: the stream stays due
+            else:
+                s.live = False  # nothing written yet (or not sendable on this link)
+            f = s.frac + s.achieved_us
+            step = f // 1000
+            s.frac = f - step * 1000
+            s.due = ticks_add(s.due, step)
+            if ticks_diff(now, s.due) >= step:
+                s.due = now  # a whole interval behind: let the missed ones go
+            if ls.credit <= 0:
+                return
+
+
+def create(ep):
+    return ep.add(Streams(getattr(getattr(ep, "board", None), "DEFAULT_STREAMS", ())))

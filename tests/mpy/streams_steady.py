@@ -1,0 +1,112 @@
+"""The telemetry steady state: every slot written every tick, ten streams scheduled.
+
+    streams_steady.py VERSION BYTES_PER_S TICKS [SCALE [bench]]
+
+An endpoint with the commands and streams services on the in-memory link
+(tests/mpy/harness.py), ten streams at 1..50 Hz, a simulated clock that starts
+5 s before ticks_ms wraps (rates multiplied by SCALE, to overload a slow link).
+After a warm-up, TICKS ticks run between
+micropython.heap_lock() and heap_unlock() (on CPython, without the lock).
+Prints `ok ticks=N bytes=N us=N MSGID:COUNT ...` (frames of each stream received
+over the locked run), or the error. With `bench`, us is the mean wall time of one
+poll (reading the idle link and the scheduler's tick, its sends included).
+"""
+import sys
+
+try:
+    import micropython
+except ImportError:
+    micropython = None
+try:
+    from time import ticks_us, ticks_diff as us_diff
+except ImportError:
+    from time import perf_counter
+
+    def ticks_us():
+        return int(perf_counter() * 1000000)
+
+    def us_diff(a, b):
+        return a - b
+
+from mavstack.compat import ticks_add
+from harness import Bench
+
+# (message id, Hz): ten streams of telemetry slots.
+RATES = ((30, 50), (31, 25), (33, 20), (32, 10), (24, 5), (74, 4), (26, 10), (65, 2), (36, 2), (147, 1))
+WARMUP = 1500
+
+
+class Values:
+    """What an application would hold: ints and floats made once."""
+
+    def __init__(self):
+        self.f = 0.125
+        self.g = -1.5
+        self.chans = [1500, 1500, 1100, 1500, 1900, 1500, 1000, 1000]
+        self.servos = [1200, 1210, 1190, 1205]
+        self.cells = [4100, 4104, 4098]
+
+
+def write_slots(tm, v, i):
+    f = v.f
+    g = v.g
+    tm.attitude(f, g, f, g, f, g)
+    tm.attitude_quaternion(f, g, f, g, f, g, f)
+    tm.global_position(473977420 + i, 85455940 - i, 488000, i & 0xFFFF, 100, -50, 3, 9000)
+    tm.local_position(f, g, f, g, f, g)
+    tm.gps_raw(3, 473977420, 85455940, 488000, 80, 120, 150, 9000, 12)
+    tm.vfr_hud(f, f, 90, 42, g, f)
+    tm.scaled_imu(1, 2, -1000, 4, 5, 6, 210, 0, 430)
+    tm.rc_channels(v.chans, 230)
+    tm.servo_output(v.servos)
+    tm.battery(12300, 450, 87, 120, v.cells)
+
+
+def run(b, v, ticks):
+    """ticks rounds of: write every slot, poll, read what came out -> us spent polling."""
+    tm = b.ep.telemetry
+    ep = b.ep
+    us = 0
+    for i in range(ticks):
+        write_slots(tm, v, i)
+        b.now = ticks_add(b.now, 1)
+        t0 = ticks_us()
+        ep.poll(b.now)
+        us += us_diff(ticks_us(), t0)
+        b.drain()
+    return us
+
+
+def main():
+    version = int(sys.argv[1])
+    bps = int(sys.argv[2])
+    ticks = int(sys.argv[3])
+    scale = int(sys.argv[4]) if len(sys.argv) > 4 else 1
+    bench = len(sys.argv) > 5 and sys.argv[5] == "bench"
+    b = Bench(services=("commands", "streams"), version=version)
+    link = b.ep.links[0]
+    link.bytes_per_s = bps
+    if version == 2:
+        link.tx.version = 2
+        link.negotiate = False
+    streams = b.ep.services["streams"]
+    b.now = ticks_add(0, -(WARMUP + 5000))  # the wrap falls inside the measured run
+    v = Values()
+    for msgid, hz in RATES:
+        streams.set_rate(link, msgid, hz * scale)
+    run(b, v, WARMUP)
+    before = [b.seen[msgid] for msgid, _ in RATES]
+    tx = link.tx_bytes
+    if micropython is not None:
+        micropython.heap_lock()
+    try:
+        us = run(b, v, ticks)
+    finally:
+        if micropython is not None:
+            micropython.heap_unlock()
+    counts = " ".join("%d:%d" % (RATES[k][0], b.seen[RATES[k][0]] - before[k]) for k in range(len(RATES)))
+    per_tick = us // ticks if bench else 0
+    print("ok ticks=%d bytes=%d us=%d %s" % (ticks, link.tx_bytes - tx, per_tick, counts))
+
+
+main()

@@ -1,0 +1,591 @@
+"""The parameter service in-process on CPython, pymavlink encoding and decoding the frames,
+and its steady state under MicroPython's heap_lock()."""
+import math
+import os
+import struct
+
+import pytest
+
+from conftest import ROOT, run_mpy
+
+from pymavlink.dialects.v20 import common as mav
+
+from mavstack.dialects import common
+from mavstack.endpoint import Endpoint
+from mavstack.kernels import crc16
+from mavstack.services import commands as commands_service
+from mavstack.services import params as P
+from mavstack.storage import Storage
+
+import sys
+
+sys.path.insert(0, os.path.join(ROOT, "boards"))
+import unix_params  # noqa: E402
+
+TABLE = unix_params.PARAMS
+N = len(TABLE)
+NAMES = [row[0] for row in TABLE]
+# One parameter of every type the service takes (the unix table is INT32 and REAL32).
+MIXED = (
+    ("U8", P.UINT8, 7, 0, 200),
+    ("I8", P.INT8, -3, -100, 100),
+    ("U16", P.UINT16, 1000),
+    ("I16", P.INT16, -1000),
+    ("U32", P.UINT32, 12345),
+    ("I32", P.INT32, -5),
+    ("F", P.REAL32, 1.5, -10.0, 10.0),
+    ("RO", P.UINT8, 1, 0, 255, P.READ_ONLY),
+)
+
+
+def as_float(fmt, v):
+    """The float whose 4 bytes are v packed as fmt (bytewise encoding)."""
+    return struct.unpack("<f", struct.pack(fmt, v).ljust(4, b"\0"))[0]
+
+
+class MemTransport:
+    """An in-memory link: bytes in from the ground station, bytes out to it."""
+
+    def __init__(self, bytes_per_s=200000, name="mem"):
+        self.bytes_per_s = bytes_per_s
+        self.name = name
+        self.inbox = bytearray()
+        self.out = bytearray()
+
+    def readinto(self, buf):
+        n = min(len(buf), len(self.inbox))
+        buf[:n] = self.inbox[:n]
+        del self.inbox[:n]
+        return n
+
+    def write(self, buf, n):
+        self.out += bytes(buf[:n])
+        return n
+
+    def close(self):
+        pass
+
+
+class Texts:
+    """Stands where the status service would: collects STATUSTEXTs."""
+
+    NAME = "status"
+
+    def __init__(self):
+        self.texts = []
+
+    def attach(self, ep):
+        pass
+
+    def statustext(self, severity, text):
+        self.texts.append(text.decode() if isinstance(text, bytes) else text)
+
+
+class Bench:
+    """An endpoint with the params and commands services, and pymavlink peers per link."""
+
+    def __init__(self, tmp_path, table=TABLE, links=1, version=2, rate=200000, **kw):
+        self.ep = Endpoint(common, 1, 1)
+        self.ep.storage = Storage(str(tmp_path / "storage"))
+        self.transports = []
+        for i in range(links):
+            t = MemTransport(rate, "mem%d" % i)
+            self.transports.append(t)
+            self.ep.add_link(t, version)
+        self.texts = Texts()
+        self.ep.add(self.texts)
+        self.params = self.ep.add(P.Params(table, **kw))
+        commands_service.create(self.ep)
+        self.mav = [mav.MAVLink(None, 255, 190) for _ in range(links)]
+        self.now = 1000
+
+    def send(self, msg, link=0):
+        self.transports[link].inbox += msg.pack(self.mav[link])
+
+    def poll(self, ms=1):
+        for _ in range(ms):
+            self.ep.poll(self.now)
+            self.now += 1
+
+    def received(self, link=0):
+        data = bytes(self.transports[link].out)
+        self.transports[link].out.clear()
+        out = []
+        for m in self.mav[link].parse_buffer(data) or []:
+            out.append(m)
+        return out
+
+    def values(self, link=0):
+        return [m for m in self.received(link) if m.get_type() == "PARAM_VALUE"]
+
+    def ask(self, msg, link=0):
+        self.texts.texts.clear()
+        self.send(msg, link)
+        self.poll()
+        return self.received(link)
+
+    def set(self, name, value, ptype, link=0, target=(1, 1)):
+        return self.ask(mav.MAVLink_param_set_message(target[0], target[1], name.encode(), value, ptype), link)
+
+    def command(self, command, *params):
+        params = list(params) + [0.0] * (7 - len(params))
+        return self.ask(mav.MAVLink_command_long_message(1, 1, command, 0, *params))
+
+    def listed(self, link=0, limit_ms=20000):
+        got = []
+        for _ in range(limit_ms):
+            self.poll()
+            got += self.values(link)
+            if len(got) >= N:
+                break
+        return got
+
+
+def raw_value(m):
+    """param_value's 4 bytes exactly as they travelled."""
+    buf = m.get_msgbuf()
+    off = 10 if buf[0] == 0xFD else 6
+    return bytes(buf[off:off + 4])
+
+
+# --- declaration ------------------------------------------------------------------
+
+@pytest.mark.parametrize("row, message", [
+    (("BIG", P.INT64, 0), "64-bit"),
+    (("BIG", P.UINT64, 0), "64-bit"),
+    (("BIG", P.REAL64, 0.0), "64-bit"),
+    (("X" * 17, P.REAL32, 0.0), "1..16"),
+    (("", P.REAL32, 0.0), "1..16"),
+    (("SPEED", P.REAL32, 40.0, 0.0, 30.0), "default"),
+    (("COUNT", P.UINT8, 300), "default"),
+    (("COUNT", P.UINT8, 3, 0, 1000), "range"),
+    (("HALF", P.INT32, 1.5), "whole"),
+    (("ODD", 42, 0), "MAV_PARAM_TYPE"),
+])
+def test_declaration_errors(row, message):
+    with pytest.raises(ValueError, match=message):
+        P.Params((row,))
+
+
+def test_declared_twice():
+    with pytest.raises(ValueError, match="twice"):
+        P.Params((("A", P.UINT8, 1), ("A", P.INT8, 1)))
+
+
+def test_hash_collisions_resolved_by_compare():
+    by_hash = {}
+    names = None
+    for k in range(100000):
+        name = "P%06d" % k
+        h = crc16(name.encode(), 0, len(name), 0xFFFF)
+        if h in by_hash:
+            names = (by_hash[h], name)
+            break
+        by_hash[h] = name
+    assert names
+    table = tuple((n, P.INT32, i) for i, n in enumerate(names + ("OTHER",)))
+    p = P.Params(table)
+    assert [p.get(n) for n in names] == [0, 1]
+    assert p.index(names[1]) == 1
+    with pytest.raises(KeyError):
+        p.index("P999999")
+
+
+# --- protocol ---------------------------------------------------------------------
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_list_in_order_with_count(tmp_path, version):
+    b = Bench(tmp_path, version=version)
+    b.send(mav.MAVLink_param_request_list_message(1, 1))
+    got = b.listed()
+    assert [m.param_index for m in got] == list(range(N))
+    assert all(m.param_count == N for m in got)
+    assert [m.param_id for m in got] == NAMES
+    assert all(m.get_header().srcSystem == 1 for m in got)
+    # Defaults, decoded the way a bytewise ground station decodes them.
+    for m, row in zip(got, TABLE):
+        assert m.param_type == row[1]
+        if row[1] == P.REAL32:
+            assert m.param_value == pytest.approx(row[2], rel=1e-6)
+        else:
+            fmt = {1: "<B", 2: "<b", 3: "<H", 4: "<h", 5: "<I", 6: "<i"}[row[1]]
+            assert raw_value(m) == struct.pack(fmt, row[2]).ljust(4, b"\0")
+
+
+def test_list_is_paced_to_half_the_link(tmp_path):
+    b = Bench(tmp_path, rate=5760)
+    b.send(mav.MAVLink_param_request_list_message(1, 1))
+    start = b.now
+    got = b.listed()
+    elapsed_ms = b.now - start
+    wire = sum(len(m.get_msgbuf()) for m in got)
+    bound_ms = wire * 1000 / 5760
+    assert len(got) == N
+    # Half the link: about twice the line-rate bound, never a burst.
+    assert 1.6 * bound_ms < elapsed_ms < 2.5 * bound_ms, (elapsed_ms, bound_ms)
+
+
+def test_new_list_restarts_and_other_links_continue(tmp_path):
+    b = Bench(tmp_path, links=2, rate=5760)
+    b.send(mav.MAVLink_param_request_list_message(1, 1), link=0)
+    b.send(mav.MAVLink_param_request_list_message(1, 1), link=1)
+    b.poll(300)
+    first0 = b.values(0)
+    first1 = b.values(1)
+    assert 5 < len(first0) < N
+    b.send(mav.MAVLink_param_request_list_message(1, 1), link=0)
+    rest0 = b.listed(0)
+    rest1 = first1 + b.values(1)
+    while len(rest1) < N:
+        b.poll(10)
+        rest1 += b.values(1)
+    assert [m.param_index for m in rest0] == list(range(N))  # restarted from 0
+    assert [m.param_index for m in rest1] == list(range(N))  # undisturbed
+
+
+def test_list_for_another_system_is_ignored(tmp_path):
+    b = Bench(tmp_path)
+    b.send(mav.MAVLink_param_request_list_message(2, 1))
+    b.send(mav.MAVLink_param_request_list_message(1, 5))
+    b.poll(100)
+    assert b.values() == []
+    b.send(mav.MAVLink_param_request_list_message(0, 0))  # broadcast
+    assert len(b.listed()) == N
+
+
+@pytest.mark.parametrize("name", ["SIM_GPS_GLITCH_M", "MOT_SPOOL_TIME_S", "RTL_LOIT_TIME_S", "WP_SPEED"])
+def test_read_by_name_including_16_chars(tmp_path, name):
+    assert len(name) in (16, 15, 8)
+    b = Bench(tmp_path)
+    got = b.ask(mav.MAVLink_param_request_read_message(1, 1, name.encode(), -1))
+    assert len(got) == 1
+    assert got[0].param_id == name and got[0].param_index == NAMES.index(name)
+    raw = got[0].get_msgbuf()
+    off = 10 if raw[0] == 0xFD else 6
+    name_field = bytes(raw[off + 8:off + 24])
+    assert name_field == name.encode().ljust(16, b"\0")  # no NUL when 16 long
+
+
+def test_read_by_index_ignores_the_name(tmp_path):
+    b = Bench(tmp_path)
+    got = b.ask(mav.MAVLink_param_request_read_message(1, 1, b"WP_SPEED", 3))
+    assert [(m.param_id, m.param_index) for m in got] == [(NAMES[3], 3)]
+
+
+@pytest.mark.parametrize("name, index", [(b"NO_SUCH_PARAM", -1), (b"WP_SPEEDX", -1), (b"WP_SPEE", -1),
+                                         (b"", -1), (b"", N), (b"", 30000)])
+def test_read_unknown_gets_statustext_only(tmp_path, name, index):
+    b = Bench(tmp_path)
+    got = b.ask(mav.MAVLink_param_request_read_message(1, 1, name, index))
+    assert got == []
+    assert len(b.texts.texts) == 1 and "unknown" in b.texts.texts[0]
+
+
+def test_set_float_answered_and_broadcast(tmp_path):
+    b = Bench(tmp_path, links=2)
+    changes = []
+    b.params.on_change = lambda name, value: changes.append((name, value))
+    got = b.set("SIM_SPEED", 7.25, P.REAL32)
+    assert [(m.param_id, m.param_value) for m in got] == [("SIM_SPEED", 7.25)]
+    b.poll(5)
+    other = b.values(1)
+    assert [(m.param_id, m.param_value, m.param_index) for m in other] == [
+        ("SIM_SPEED", 7.25, NAMES.index("SIM_SPEED"))]
+    assert changes == [("SIM_SPEED", 7.25)]
+    assert b.params.get("SIM_SPEED") == 7.25
+
+
+@pytest.mark.parametrize("name, ptype, fmt, value", [
+    ("BATT_CAPACITY", P.INT32, "<i", 6000),
+    ("I32", P.INT32, "<i", -2000000000),
+    ("U32", P.UINT32, "<I", 3000000000),
+    ("I16", P.INT16, "<h", -4500),
+    ("U16", P.UINT16, "<H", 60000),
+    ("I8", P.INT8, "<b", -1),
+    ("U8", P.UINT8, "<B", 200),
+])
+def test_set_int_bytewise(tmp_path, name, ptype, fmt, value):
+    b = Bench(tmp_path, table=TABLE if name in NAMES else MIXED)
+    got = b.set(name, as_float(fmt, value), ptype)
+    assert len(got) == 1 and got[0].param_type == ptype
+    assert raw_value(got[0]) == struct.pack(fmt, value).ljust(4, b"\0")
+    assert b.params.get(name) == value
+    assert b.texts.texts == []
+
+
+def test_mixed_types_listed_bytewise(tmp_path):
+    b = Bench(tmp_path, table=MIXED)
+    b.send(mav.MAVLink_param_request_list_message(1, 1))
+    got = [m for m in b.listed() if True]
+    b.poll(10)
+    got += b.values()
+    assert [raw_value(m) for m in got] == [
+        b"\x07\0\0\0", b"\xfd\0\0\0", struct.pack("<I", 1000), struct.pack("<hh", -1000, 0),
+        struct.pack("<I", 12345), struct.pack("<i", -5), struct.pack("<f", 1.5), b"\x01\0\0\0"]
+    assert [m.param_type for m in got] == [row[1] for row in MIXED]
+
+
+@pytest.mark.parametrize("name, value, ptype, reason", [
+    ("SIM_SPEED", 45.0, P.REAL32, "range"),
+    ("SIM_SPEED", 0.1, P.REAL32, "range"),
+    ("SIM_SPEED", float("nan"), P.REAL32, "NaN"),
+    ("SIM_SPEED", float("inf"), P.REAL32, "finite"),
+    ("SIM_SPEED", -float("inf"), P.REAL32, "finite"),
+    ("SIM_SPEED", as_float("<i", 6), P.INT32, "type"),
+    ("BATT_CAPACITY", 6000.0, P.REAL32, "type"),
+    ("BATT_CAPACITY", as_float("<i", -5), P.INT32, "range"),
+    ("U8", as_float("<B", 201), P.UINT8, "range"),
+    ("I8", as_float("<b", -101), P.INT8, "range"),
+    ("U8", as_float("<i", 12), P.INT32, "type"),
+    ("MAV_SYS_ID", as_float("<i", 7), P.INT32, "read-only"),
+    ("RO", as_float("<B", 7), P.UINT8, "read-only"),
+])
+def test_set_refused_keeps_value(tmp_path, name, value, ptype, reason):
+    b = Bench(tmp_path, table=TABLE if name in NAMES else MIXED, links=2)
+    before = b.params.get(name)
+    got = b.set(name, value, ptype)
+    assert len(got) == 1 and got[0].param_id == name
+    assert b.params.get(name) == before
+    if isinstance(before, float):
+        assert got[0].param_value == pytest.approx(before)
+    assert len(b.texts.texts) == 1 and reason in b.texts.texts[0] and name in b.texts.texts[0]
+    b.poll(5)
+    assert b.values(1) == []  # nothing changed: nothing to tell the others
+
+
+def test_set_unknown_and_foreign_targets(tmp_path):
+    b = Bench(tmp_path)
+    assert b.set("NO_SUCH", 1.0, P.REAL32) == []
+    assert "unknown" in b.texts.texts[0]
+    assert b.set("SIM_SPEED", 8.0, P.REAL32, target=(2, 1)) == []
+    assert b.set("SIM_SPEED", 8.0, P.REAL32, target=(1, 2)) == []
+    assert b.texts.texts == [] and b.params.get("SIM_SPEED") == 5.0
+    assert len(b.set("SIM_SPEED", 8.0, P.REAL32, target=(0, 0))) == 1
+
+
+def test_set_refused_without_operator_control(tmp_path):
+    b = Bench(tmp_path)
+
+    class NotYou:
+        def allows(self, link):
+            return False
+
+    b.ep.operator = NotYou()
+    got = b.set("SIM_SPEED", 8.0, P.REAL32)
+    assert [m.param_value for m in got] == [5.0]
+    assert "control" in b.texts.texts[0]
+    acks = [m for m in b.command(180, NAMES.index("SIM_SPEED"), 9.0) if m.get_type() == "COMMAND_ACK"]
+    assert [a.result for a in acks] == [2]  # DENIED
+    assert b.params.get("SIM_SPEED") == 5.0
+
+
+def test_reboot_flag_is_reported(tmp_path):
+    b = Bench(tmp_path)
+    b.set("SERIAL1_BAUD", as_float("<i", 115200), P.INT32)
+    assert any("reboot" in t for t in b.texts.texts)
+
+
+def test_c_cast_encoding(tmp_path):
+    b = Bench(tmp_path, table=MIXED, encoding="c_cast")
+    assert b.ep.capabilities & (1 << 17) and not b.ep.capabilities & (1 << 4)
+    b.send(mav.MAVLink_param_request_list_message(1, 1))
+    got = {m.param_id: m for m in b.listed(limit_ms=50)}
+    assert [got[row[0]].param_value for row in MIXED] == [7.0, -3.0, 1000.0, -1000.0, 12345.0, -5.0, 1.5, 1.0]
+    assert b.set("I32", 6000.0, P.INT32)[0].param_value == 6000.0
+    # A C-cast ground station may tag every value REAL32: the value is still the number.
+    assert b.set("U32", 3000000000.0, P.REAL32)[0].param_value == 3000000000.0
+    assert b.params.get("U32") == 3000000000
+    assert b.set("I32", 6000.5, P.INT32)[0].param_value == 6000.0
+    assert "whole" in b.texts.texts[0]
+    assert b.set("I8", -101.0, P.INT8)[0].param_value == -3.0
+    assert "range" in b.texts.texts[0]
+    assert b.set("I8", -100.0, P.REAL32)[0].param_value == -100.0
+    assert b.params.get("I8") == -100
+
+
+def test_bytewise_capability(tmp_path):
+    b = Bench(tmp_path)
+    assert b.ep.capabilities & (1 << 4) and not b.ep.capabilities & (1 << 17)
+
+
+def test_do_set_parameter(tmp_path):
+    b = Bench(tmp_path, links=2)
+    i = NAMES.index("BATT_CAPACITY")
+    got = b.command(180, i, 7000.0)
+    b.poll(5)
+    got += b.received()
+    # The ACK first, then the new value on every link.
+    assert [m.get_type() for m in got] == ["COMMAND_ACK", "PARAM_VALUE"]
+    assert got[0].result == 0 and got[1].param_id == "BATT_CAPACITY"
+    assert b.params.get("BATT_CAPACITY") == 7000
+    assert [m.param_id for m in b.values(1)] == ["BATT_CAPACITY"]
+    for args in ((i, 7000.5), (i, -1.0), (N, 1.0), (-1, 1.0), (float("nan"), 1.0), (i, float("nan")),
+                 (NAMES.index("MAV_SYS_ID"), 3.0), (NAMES.index("SIM_SPEED"), float("inf"))):
+        acks = [m for m in b.command(180, *args) if m.get_type() == "COMMAND_ACK"]
+        assert [a.result for a in acks] == [2], args
+    assert b.params.get("BATT_CAPACITY") == 7000
+    acks = [m for m in b.command(180, NAMES.index("SIM_SPEED"), 12.5) if m.get_type() == "COMMAND_ACK"]
+    assert acks[0].result == 0 and b.params.get("SIM_SPEED") == 12.5
+
+
+# --- application API ----------------------------------------------------------------
+
+def test_application_api(tmp_path):
+    b = Bench(tmp_path, links=2)
+    i = b.params.index("SIM_SPEED")
+    assert b.params.value(i) == 5.0 and b.params.name(i) == "SIM_SPEED" and b.params.type(i) == P.REAL32
+    assert b.params.set("SIM_SPEED", 6.5) is True
+    assert b.params.set("SIM_SPEED", 6.5) is False
+    b.poll(5)
+    for link in (0, 1):
+        assert [(m.param_id, m.param_value) for m in b.values(link)] == [("SIM_SPEED", 6.5)]
+    b.params.set("MAV_SYS_ID", 9)  # read-only for ground stations, not for the application
+    assert b.params.get("MAV_SYS_ID") == 9
+    for name, value in (("SIM_SPEED", 100.0), ("SIM_GPS_SATS", 2.5), ("SIM_GPS_SATS", 2 ** 31),
+                        ("SIM_SPEED", math.nan)):
+        with pytest.raises(ValueError):
+            b.params.set(name, value)
+    with pytest.raises(KeyError):
+        b.params.get("NOPE")
+
+
+# --- persistence --------------------------------------------------------------------
+
+def test_save_and_boot_keep_values(tmp_path):
+    b = Bench(tmp_path)
+    assert any("defaults" in t for t in b.texts.texts)  # nothing stored yet
+    b.set("SIM_SPEED", 9.5, P.REAL32)
+    b.set("BATT_CAPACITY", as_float("<i", 4321), P.INT32)
+    acks = [m for m in b.command(245, 1) if m.get_type() == "COMMAND_ACK"]
+    assert acks[0].result == 0
+    b2 = Bench(tmp_path)
+    assert b2.params.get("SIM_SPEED") == 9.5 and b2.params.get("BATT_CAPACITY") == 4321
+    assert b2.texts.texts == []
+
+
+def test_reload_and_reset(tmp_path):
+    b = Bench(tmp_path, links=2)
+    b.set("SIM_SPEED", 9.5, P.REAL32)
+    b.command(245, 1)
+    b.set("SIM_SPEED", 3.0, P.REAL32)
+    b.poll(5)
+    b.values(1)
+    changes = []
+    b.params.on_change = lambda name, value: changes.append((name, value))
+    acks = [m for m in b.command(245, 0) if m.get_type() == "COMMAND_ACK"]
+    assert acks[0].result == 0 and b.params.get("SIM_SPEED") == 9.5
+    b.poll(5)
+    assert [(m.param_id, m.param_value) for m in b.values(1)] == [("SIM_SPEED", 9.5)]
+    assert changes == [("SIM_SPEED", 9.5)]
+    acks = [m for m in b.command(245, 2) if m.get_type() == "COMMAND_ACK"]
+    assert acks[0].result == 0 and b.params.get("SIM_SPEED") == 5.0
+    assert [m.result for m in b.command(245, 3) if m.get_type() == "COMMAND_ACK"] == [3]
+    assert [m.result for m in b.command(245, 7) if m.get_type() == "COMMAND_ACK"] == [2]
+
+
+def test_reload_without_file_keeps_values(tmp_path):
+    b = Bench(tmp_path)
+    b.set("SIM_SPEED", 9.5, P.REAL32)
+    acks = [m for m in b.command(245, 0) if m.get_type() == "COMMAND_ACK"]
+    assert acks[0].result == 4  # FAILED
+    assert b.params.get("SIM_SPEED") == 9.5 and "not reloaded" in b.texts.texts[0]
+
+
+def test_autosave(tmp_path):
+    b = Bench(tmp_path, autosave_ms=200)
+    b.set("SIM_SPEED", 9.5, P.REAL32)
+    b.poll(100)
+    assert not b.ep.storage.exists("params")
+    b.poll(150)
+    assert b.ep.storage.exists("params")
+    assert Bench(tmp_path).params.get("SIM_SPEED") == 9.5
+
+
+def _stored(tmp_path):
+    return tmp_path / "storage" / "params"
+
+
+@pytest.mark.parametrize("damage", ["truncate", "garbage", "empty", "flip", "bad_count"])
+def test_corrupt_file_means_defaults_and_next_save_works(tmp_path, damage):
+    b = Bench(tmp_path)
+    b.set("SIM_SPEED", 9.5, P.REAL32)
+    assert b.params.save()
+    data = bytearray(_stored(tmp_path).read_bytes())
+    if damage == "truncate":
+        data = data[: len(data) // 2]
+    elif damage == "garbage":
+        data = bytearray(os.urandom(len(data)))
+    elif damage == "empty":
+        data = bytearray()
+    elif damage == "flip":
+        data[len(data) // 2] ^= 0x40
+    elif damage == "bad_count":
+        data[6] += 1
+        struct.pack_into("<H", data, len(data) - 2, crc16(data, 0, len(data) - 2, 0xFFFF))
+    _stored(tmp_path).write_bytes(bytes(data))
+    b2 = Bench(tmp_path)
+    assert b2.params.get("SIM_SPEED") == 5.0
+    assert any("corrupt" in t for t in b2.texts.texts)
+    b2.set("SIM_SPEED", 11.0, P.REAL32)
+    assert b2.params.save()
+    assert Bench(tmp_path).params.get("SIM_SPEED") == 11.0
+
+
+def test_leftover_new_file_never_replaces_the_good_one(tmp_path):
+    b = Bench(tmp_path)
+    b.set("SIM_SPEED", 9.5, P.REAL32)
+    b.params.save()
+    (tmp_path / "storage" / "params.new").write_bytes(os.urandom(300))  # a save cut short
+    b2 = Bench(tmp_path)
+    assert b2.params.get("SIM_SPEED") == 9.5 and b2.texts.texts == []
+    assert not (tmp_path / "storage" / "params.new").exists()
+
+
+def test_failed_write_keeps_previous_file(tmp_path, monkeypatch):
+    b = Bench(tmp_path)
+    b.set("SIM_SPEED", 9.5, P.REAL32)
+    b.params.save()
+    good = _stored(tmp_path).read_bytes()
+    b.set("SIM_SPEED", 12.0, P.REAL32)
+
+    def full(name):
+        raise OSError(28, "no space")
+
+    monkeypatch.setattr(b.ep.storage, "open_new", full)
+    acks = [m for m in b.command(245, 1) if m.get_type() == "COMMAND_ACK"]
+    assert acks[0].result == 4 and any("not saved" in t for t in b.texts.texts)
+    assert _stored(tmp_path).read_bytes() == good
+
+
+def test_firmware_update_keeps_remaining_values(tmp_path):
+    old = (("KEEP_F", P.REAL32, 1.0, 0.0, 10.0), ("GONE", P.UINT8, 3), ("KEEP_I", P.INT16, 5),
+           ("RETYPED", P.UINT8, 1), ("NARROWED", P.REAL32, 5.0, 0.0, 10.0))
+    b = Bench(tmp_path, table=old)
+    for name, value in (("KEEP_F", 2.5), ("GONE", 4), ("KEEP_I", -7), ("RETYPED", 2), ("NARROWED", 8.0)):
+        b.params.set(name, value)
+    b.params.save()
+    new = (("NEW", P.UINT16, 42), ("KEEP_I", P.INT16, 5), ("RETYPED", P.INT32, 1),
+           ("NARROWED", P.REAL32, 5.0, 0.0, 6.0), ("KEEP_F", P.REAL32, 1.0, 0.0, 10.0))
+    b2 = Bench(tmp_path, table=new)
+    p = b2.params
+    assert (p.get("NEW"), p.get("KEEP_I"), p.get("KEEP_F")) == (42, -7, 2.5)
+    assert (p.get("RETYPED"), p.get("NARROWED")) == (1, 5.0)  # changed type / now out of range
+    assert any("2 stored values invalid" in t for t in b2.texts.texts)
+
+
+# --- MicroPython: the steady state allocates nothing --------------------------------
+
+@pytest.mark.parametrize("args", [("bytewise", 2, 5760), ("c_cast", 1, 5760), ("bytewise", 1, 200000)])
+@pytest.mark.parametrize("portable", [False, True])
+def test_steady_state_under_heap_lock(args, portable):
+    env = {"MAVSTACK_PORTABLE": "1"} if portable else {}
+    old = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    try:
+        r = run_mpy(os.path.join(ROOT, "tests", "mpy", "params_steady.py"), *args)
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout.startswith("ok values=100 reads=4"), r.stdout + r.stderr

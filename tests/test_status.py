@@ -1,0 +1,246 @@
+"""Status service end to end: the unix vehicle over UDP, pymavlink as the ground station.
+
+Identity and life cycle (HEARTBEAT), SYS_STATUS figures, SYSTEM_TIME, PING,
+STATUSTEXT, AUTOPILOT_VERSION, ground-station loss, MAVLink 1 and 2 ground stations,
+operator control. Steady state under heap_lock is in test_status_heap.py.
+"""
+import time
+
+from pymavlink import mavutil
+
+from conftest import Vehicle, free_udp_port, recv
+from gcs_tools import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, command, listen, request, run, start,
+                       statustext, vehicle_heartbeat)
+
+MAV_STATE_BOOT = 1
+MAV_STATE_STANDBY = 3
+MAV_STATE_ACTIVE = 4
+ARMED = 128
+CAP_COMMAND_INT = 8
+CAP_PARAM_ENCODE_BYTEWISE = 16
+CAP_MAVLINK2 = 8192
+
+
+def test_heartbeat_identity_and_rate(vehicle):
+    v = start(vehicle)
+    m = v.gcs()
+    hb = vehicle_heartbeat(m)
+    assert hb.type == 2  # boards/unix.py MAV_TYPE_QUADROTOR
+    assert hb.autopilot == 0  # MAV_AUTOPILOT_GENERIC
+    assert hb.mavlink_version == 3
+    assert hb.get_srcComponent() == 1
+    assert hb.system_status == MAV_STATE_STANDBY
+    assert not hb.base_mode & ARMED
+    # 1 Hz: over 3.5 s, 3 or 4 heartbeats
+    t0 = time.time()
+    count = 0
+    while time.time() - t0 < 3.5:
+        if recv(m, "HEARTBEAT", 0.3, lambda h: h.get_srcComponent() == 1) is not None:
+            count += 1
+        m.mav.heartbeat_send(6, 8, 0, 0, 0)
+    assert 3 <= count <= 4, count
+
+
+def test_life_cycle_boot_standby_active(vehicle, tmp_path):
+    # udpout: the vehicle talks first, so its very first heartbeat (BOOT) is heard.
+    port = free_udp_port()
+    m = mavutil.mavlink_connection("udpin:127.0.0.1:%d" % port, source_system=255, source_component=190,
+                                   dialect="common")
+    try:
+        start(vehicle, links=["udpout:127.0.0.1:%d" % port])
+        first = recv(m, "HEARTBEAT", 20)
+        assert first is not None
+        assert first.system_status == MAV_STATE_BOOT
+        m.target_system, m.target_component = first.get_srcSystem(), 1
+        assert vehicle_heartbeat(m, lambda h: h.system_status == MAV_STATE_STANDBY) is not None
+        assert run(m, 400, 1) == MAV_RESULT_ACCEPTED
+        hb = vehicle_heartbeat(m, lambda h: h.base_mode & ARMED)
+        assert hb.system_status == MAV_STATE_ACTIVE
+        assert run(m, 400, 0) == MAV_RESULT_ACCEPTED
+        hb = vehicle_heartbeat(m, lambda h: not h.base_mode & ARMED)
+        assert hb.system_status == MAV_STATE_STANDBY
+    finally:
+        m.close()
+
+
+def _sys_status(m, cond, timeout=8.0):
+    deadline = time.time() + timeout
+    last = None
+    while time.time() < deadline:
+        result, s = request(m, 1, timeout=2)
+        assert result == MAV_RESULT_ACCEPTED
+        if s is not None:
+            last = s
+            if cond(s):
+                return s
+        time.sleep(0.3)
+    raise AssertionError("no matching SYS_STATUS; last %s" % last)
+
+
+def test_sys_status_figures_follow_link_errors(vehicle):
+    v = start(vehicle)
+    m = v.gcs()
+    s = _sys_status(m, lambda s: 0 < s.load < 1000)
+    assert s.onboard_control_sensors_present != 0
+    assert 0 <= s.battery_remaining <= 100 and 6000 <= s.voltage_battery <= 60000
+    errors0 = s.errors_comm
+    # Frames with a broken CRC: counted as communication errors.
+    good = m.mav.heartbeat_encode(6, 8, 0, 0, 0).pack(m.mav)
+    for i in range(6):
+        bad = bytearray(good)
+        bad[-1] ^= 0x5A
+        m.write(bytes(bad))
+    _sys_status(m, lambda s: s.errors_comm >= errors0 + 6)
+    # Sequence gaps: frames lost on the way in, shown as drop_rate_comm (c%).
+    for i in range(10):
+        m.mav.seq = (m.mav.seq + 20) % 256
+        m.mav.heartbeat_send(6, 8, 0, 0, 0)
+    s = _sys_status(m, lambda s: s.drop_rate_comm > 0)
+    assert s.drop_rate_comm <= 10000
+
+
+def test_system_time(vehicle):
+    v = start(vehicle)
+    m = v.gcs()
+    result, t1 = request(m, 2)
+    assert result == MAV_RESULT_ACCEPTED and t1 is not None
+    assert abs(t1.time_unix_usec / 1e6 - time.time()) < 5  # the simulator's clock is the host's
+    time.sleep(0.3)
+    _, t2 = request(m, 2)
+    assert t2.time_boot_ms > t1.time_boot_ms
+
+
+def test_ping_request_is_answered_response_is_not(vehicle):
+    v = start(vehicle)
+    m = v.gcs()
+    m.mav.ping_send(123456789012, 77, 0, 0)
+    p = recv(m, "PING", 5, lambda p: p.seq == 77)
+    assert p is not None
+    assert p.time_usec == 123456789012
+    assert (p.target_system, p.target_component) == (255, 190)
+    assert p.get_srcSystem() == 1
+    m.mav.ping_send(5, 78, 1, 1)  # a response addressed to the vehicle: nothing comes back
+    assert recv(m, "PING", 1.0, lambda p: p.seq == 78) is None
+
+
+def _ordered(m, types, timeout=5.0):
+    got = []
+    deadline = time.time() + timeout
+    while time.time() < deadline and len(got) < len(types):
+        msg = m.recv_match(type=types, blocking=True, timeout=0.5)
+        if msg is not None and msg.get_type() not in [g.get_type() for g in got]:
+            got.append(msg)
+    return got
+
+
+def test_autopilot_version_by_512_and_520(vehicle):
+    v = start(vehicle)
+    m = v.gcs()
+    for cmd, params in ((512, (148,)), (520, (1,))):
+        command(m, cmd, *params)
+        got = _ordered(m, ["COMMAND_ACK", "AUTOPILOT_VERSION"])
+        assert [g.get_type() for g in got] == ["COMMAND_ACK", "AUTOPILOT_VERSION"], got  # ACK first
+        assert got[0].command == cmd and got[0].result == MAV_RESULT_ACCEPTED
+        av = got[1]
+        assert av.capabilities & CAP_MAVLINK2
+        assert av.capabilities & CAP_COMMAND_INT
+        assert av.capabilities & CAP_PARAM_ENCODE_BYTEWISE  # the unix board has parameters
+        assert av.flight_sw_version == 0 << 24 | 1 << 16 | 0 << 8 | 0  # mavstack 0.1.0, DEV
+        assert av.os_sw_version >> 24 == 1  # MicroPython 1.x
+        assert av.uid != 0
+
+
+def test_statustext_from_arm_veto(vehicle):
+    v = start(vehicle, "--set", "arm_veto=1")
+    m = v.gcs()
+    command(m, 400, 1)
+    s = statustext(m, "pre-arm")
+    assert s is not None and s.text.startswith("Arm: ")
+    assert s.severity == 2  # MAV_SEVERITY_CRITICAL
+
+
+def test_gcs_lost_and_regained(vehicle):
+    v = start(vehicle, "--set", "gcs_timeout_ms=1000")
+    m = v.gcs()  # its first heartbeat was "heard" (that STATUSTEXT went by while connecting)
+    # Silence (no heartbeats): after 1 s the application is told, and says so.
+    lost = recv(m, "STATUSTEXT", 5, lambda s: "GCS lost" in s.text)
+    assert lost is not None and lost.severity == 4
+    assert statustext(m, "GCS heard") is not None
+
+
+def _frames_versions(m, seconds):
+    magics = set()
+    t0 = time.time()
+    while time.time() - t0 < seconds:
+        msg = m.recv_match(blocking=True, timeout=0.3)
+        if msg is not None and msg.get_type() != "BAD_DATA":
+            magics.add(msg.get_msgbuf()[0])
+    return magics
+
+
+def test_mavlink1_ground_station_gets_mavlink1_only(vehicle):
+    v = start(vehicle)
+    m = v.gcs(version=1)
+    assert m.recv_match(type="HEARTBEAT", blocking=True, timeout=3).get_msgbuf()[0] == 0xFE
+    command(m, 512, 148)
+    a = recv(m, "COMMAND_ACK", 5, lambda a: a.command == 512)
+    av = recv(m, "AUTOPILOT_VERSION", 5)
+    assert a.result == MAV_RESULT_ACCEPTED and av is not None
+    assert a.get_msgbuf()[0] == 0xFE and av.get_msgbuf()[0] == 0xFE
+    m.mav.heartbeat_send(6, 8, 0, 0, 0)
+    assert _frames_versions(m, 2.0) == {0xFE}
+
+
+def test_mavlink2_ground_station_switches_the_link_to_mavlink2(vehicle):
+    v = start(vehicle)
+    m = v.gcs(version=2)
+    m.mav.heartbeat_send(6, 8, 0, 0, 0)
+    time.sleep(0.2)
+    m.recv_match(blocking=False)
+    assert _frames_versions(m, 2.0) == {0xFD}
+    # A message id over 255 exists only in MAVLink 2 (here: a command's answer path still works).
+    assert run(m, 512, 148) == MAV_RESULT_ACCEPTED
+
+
+def test_operator_control(vehicle):
+    # Two ground stations on two links (a udpin link answers one peer).
+    ports = free_udp_port(), free_udp_port()
+    v = start(vehicle, "--set", "passkey=Open-Sesame", "--set", "gcs_timeout_ms=1500",
+              links=["udpin:127.0.0.1:%d" % p for p in ports])
+    a = v.gcs(source_system=255, port=ports[0])
+    b = v.gcs(source_system=254, port=ports[1])
+    # Nobody in control: arming is refused.
+    assert run(a, 400, 1) == MAV_RESULT_DENIED
+
+    def control(m, request, passkey, version=0):
+        m.mav.change_operator_control_send(1, request, version, passkey.encode())
+        r = recv(m, "CHANGE_OPERATOR_CONTROL_ACK", 5, lambda r: r.gcs_system_id == m.source_system)
+        assert r is not None and r.control_request == request
+        return r.ack
+
+    assert control(a, 0, "wrong") == 1  # NACK: wrong passkey
+    assert control(a, 0, "Open-Sesame", version=1) == 2  # NACK: unsupported encryption
+    assert control(a, 0, "Open-Sesame") == 0
+    assert statustext(b, "Operator control: GCS 255") is not None
+    assert run(a, 400, 1) == MAV_RESULT_ACCEPTED
+    assert run(b, 400, 0) == MAV_RESULT_DENIED  # not in control
+    assert vehicle_heartbeat(b, lambda h: h.base_mode & ARMED) is not None
+    assert control(b, 0, "Open-Sesame") == 3  # NACK: already under control
+    assert control(b, 1, "") == 3  # cannot release someone else's control
+    assert control(a, 1, "") == 0  # released
+    assert control(b, 0, "Open-Sesame") == 0
+    assert run(b, 400, 0) == MAV_RESULT_ACCEPTED
+    assert run(a, 400, 1) == MAV_RESULT_DENIED
+    # The holder goes silent: control is released, another GCS with the passkey takes over.
+    assert statustext(a, "released: GCS lost", timeout=5) is not None
+    assert control(a, 0, "Open-Sesame") == 0
+    assert run(a, 400, 1) == MAV_RESULT_ACCEPTED
+
+
+def test_change_operator_control_without_passkey_is_granted(vehicle):
+    v = start(vehicle)
+    m = v.gcs()
+    m.mav.change_operator_control_send(1, 0, 0, b"anything")
+    r = recv(m, "CHANGE_OPERATOR_CONTROL_ACK", 5)
+    assert r is not None and r.ack == 0
+    assert run(m, 400, 1) == MAV_RESULT_ACCEPTED

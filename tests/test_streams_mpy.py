@@ -1,0 +1,55 @@
+"""The telemetry steady state inside MicroPython: every slot written every tick and
+ten streams scheduled, 10,000 ticks under micropython.heap_lock(), across a wrap of
+ticks_ms, on a fast link and on one overloaded at 57600 baud; the same script on
+CPython for the rates."""
+import os
+import subprocess
+
+import pytest
+
+from conftest import ROOT, PYTHON, FIRMWARE, run_mpy
+
+MPY = os.path.join(ROOT, "tests", "mpy")
+SCRIPT = os.path.join(MPY, "streams_steady.py")
+RATES = {30: 50, 31: 25, 33: 20, 32: 10, 24: 5, 74: 4, 26: 10, 65: 2, 36: 2, 147: 1}
+TICKS = 10000
+
+
+def parse(out):
+    assert out.startswith("ok "), out
+    words = out.split()
+    info = dict(w.split("=") for w in words[1:4])
+    counts = {int(k): int(v) for k, v in (w.split(":") for w in words[4:])}
+    return int(info["ticks"]), int(info["bytes"]), counts
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_steady_state_under_heap_lock(version):
+    r = run_mpy(SCRIPT, version, 200000, TICKS, timeout=120, path=[MPY])
+    assert r.returncode == 0, r.stdout + r.stderr
+    ticks, _, counts = parse(r.stdout.strip())
+    assert ticks == TICKS
+    for msgid, hz in RATES.items():
+        if version == 1 and msgid > 255:
+            continue
+        assert abs(counts[msgid] - hz * TICKS // 1000) <= 1, (msgid, counts[msgid])
+
+
+def test_overloaded_slow_link_under_heap_lock():
+    # Three times the rates on 5760 B/s: the fit and the budget run locked too.
+    r = run_mpy(SCRIPT, 2, 5760, TICKS, 3, timeout=120, path=[MPY])
+    assert r.returncode == 0, r.stdout + r.stderr
+    _, sent, counts = parse(r.stdout.strip())
+    assert sent <= 5760 * TICKS // 1000
+    shares = [counts[m] / (3 * hz * TICKS / 1000) for m, hz in RATES.items()]
+    assert min(shares) > 0.2 and max(shares) - min(shares) < 0.1
+
+
+def test_same_script_on_cpython():
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([MPY, FIRMWARE]))
+    r = subprocess.run([PYTHON, SCRIPT, "2", "200000", str(TICKS)], capture_output=True, text=True,
+                       timeout=120, env=env, cwd=ROOT)
+    assert r.returncode == 0, r.stdout + r.stderr
+    _, _, counts = parse(r.stdout.strip())
+    for msgid, hz in RATES.items():
+        assert abs(counts[msgid] - hz * TICKS // 1000) <= 1, (msgid, counts[msgid])
