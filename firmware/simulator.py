@@ -107,11 +107,7 @@ class Simulator:
         yaw = math.atan2(math.sin(self.heading), math.cos(self.heading))
         p, q, r = self._rates(pub, dt, yaw)
         roll, pitch = self.roll, self.pitch
-        home_alt = HOME_ALT
-        if status is not None:
-            if not status.home_set:
-                status.set_home(round(self.lat * 1e7), round(self.lon * 1e7), round(self.alt * 1000))
-            home_alt = status.home_alt / 1000.0
+        home_alt = status.home_alt / 1000.0 if status is not None and status.home_set else HOME_ALT
         rel = self.alt - home_alt
         speed = math.sqrt(self.vn * self.vn + self.ve * self.ve)
         cog = math.degrees(math.atan2(self.ve, self.vn)) % 360.0
@@ -172,19 +168,8 @@ class Simulator:
         pub["count"] += 1
 
     def _publish_init(self, tm):
-        # Once: the state publish() keeps between calls, sensor health, the clock.
+        # Once: the state publish() keeps between calls.
         self._pub = {"last": self.ep.now, "gps_age": 1.0, "count": 0, "att": None, "consumed": 0.0}
-        status = self.ep.services.get("status")
-        if status is not None:
-            # gyro, accel, mag, baro, GPS, rate/attitude/yaw/z/xy control, motors, RC, AHRS, battery
-            sensors = 1 | 2 | 4 | 8 | 32 | 1024 | 2048 | 4096 | 8192 | 32768 | 65536 | (1 << 21) | (1 << 25)
-            status.set_sensors(sensors, sensors, sensors)
-            try:
-                import time
-
-                status.set_clock(time.time_ns() // 1000)
-            except (AttributeError, ImportError):
-                pass
 
     def _rates(self, pub, dt, yaw):
         # Body rates from the change of attitude since the last publish.

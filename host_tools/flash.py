@@ -189,7 +189,11 @@ def mpy_cross(src, dest, source_name, arch, opt):
     cmd += ["-s", source_name, "-o", dest, src]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
-        raise FlashError("mpy-cross %s:\n%s" % (source_name, (r.stderr or r.stdout).strip()))
+        # mpy-cross reports like a traceback; keep the place and the error.
+        lines = [l.strip() for l in (r.stderr or r.stdout).strip().splitlines()]
+        where = [l for l in lines if l.startswith("File ")]
+        raise FlashError("mpy-cross: %s%s" % (where[-1] + ": " if where else source_name + ": ",
+                                               lines[-1] if lines else "failed"))
 
 
 def build(board, out, arch=None, with_meta=False, messages=None, opt=0, native=True):
@@ -198,6 +202,9 @@ def build(board, out, arch=None, with_meta=False, messages=None, opt=0, native=T
     arch = arch or settings.get("MPY_ARCH") or ARCH.get(board)
     if not arch:
         raise FlashError("no CPU known for board %r: give --arch" % board)
+    if arch not in ARCH_BY_INDEX + ("host",):
+        raise FlashError("unknown --arch %s (mpy-cross knows %s, host)"
+                         % (arch, ", ".join(ARCH_BY_INDEX[1:])))
     dialect = settings.get("DIALECT", "common")
     sources = stack_sources(dialect, with_meta)
     if not any(rel == "mavstack/dialects/" + dialect for _, rel in sources):
@@ -350,7 +357,11 @@ def main(argv=None):
                       "(portable kernels)" % (fw, MPY_VERSION, MPY_SUB_VERSION))
         out = args.build_only or os.path.join(ROOT, "build", args.board)
         prepare_out(out)
-        files = build(args.board, out, arch, args.with_meta, messages, args.opt, native)
+        try:
+            files = build(args.board, out, arch, args.with_meta, messages, args.opt, native)
+        except FlashError:
+            shutil.rmtree(out, ignore_errors=True)  # no half-built tree left behind
+            raise
         size = sum(os.path.getsize(os.path.join(out, f)) for f in files)
         print("flash: %d files, %d bytes for %s in %s" % (len(files), size, args.board, out))
         if args.build_only:

@@ -143,12 +143,28 @@ class Vehicle:
             self.mav.heartbeat_send(MAV_TYPE_GCS, 8, 0, 0, 4)
 
     def connect(self, timeout):
-        """Wait for the vehicle's HEARTBEAT; learn its ids if not given."""
+        """Wait for the vehicle's HEARTBEAT (or its answer to our PING); learn its ids
+        if not given."""
         deadline = time.monotonic() + timeout
+        asked = False
         while time.monotonic() < deadline:
             self.heartbeat()
-            msg = self.conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.2)
-            if msg is None or msg.type == MAV_TYPE_GCS:
+            msg = self.conn.recv_match(blocking=True, timeout=0.2)
+            if msg is None:
+                continue
+            kind = msg.get_type()
+            if kind == "PING":
+                if (msg.target_system, msg.target_component) != (self.mav.srcSystem, self.mav.srcComponent):
+                    continue
+            elif kind != "HEARTBEAT" or msg.type == MAV_TYPE_GCS:
+                if not asked:
+                    # Rather than wait up to a second for the next beat, ask: PING to
+                    # all (0/0) and a HEARTBEAT by REQUEST_MESSAGE. Sent once the link
+                    # carries traffic (udpin learns its peer from it).
+                    self.mav.ping_send(int(time.time() * 1e6), 0, 0, 0)
+                    self.mav.command_long_send(0, 0, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                                               mavlink.MAVLINK_MSG_ID_HEARTBEAT, 0, 0, 0, 0, 0, 0)
+                    asked = True
                 continue
             if self.target_system not in (None, msg.get_srcSystem()):
                 continue
@@ -225,16 +241,26 @@ class Vehicle:
         for command, p1 in requests:
             self.mav.command_long_send(self.target_system, self.target_component, command, 0, p1,
                                        0, 0, 0, 0, 0, 0)
-            msg = self.recv(("AUTOPILOT_VERSION",), 1.0)
-            if msg is not None:
-                return msg.capabilities
+            # An ACK alone means the request was not run (refused, or taken for a
+            # repeat of the last command): then try the other form at once.
+            wait = 1.0
+            while True:
+                msg = self.recv(("AUTOPILOT_VERSION", "COMMAND_ACK"), wait,
+                                lambda m: m.get_type() == "AUTOPILOT_VERSION" or m.command == command)
+                if msg is None:
+                    break
+                if msg.get_type() == "AUTOPILOT_VERSION":
+                    return msg.capabilities
+                if msg.result != mavlink.MAV_RESULT_ACCEPTED:
+                    break
+                wait = 0.3
         return 0
 
     def param_from(self, msg):
         return Param(msg.param_id, msg.param_type, msg.param_index, msg.param_count,
                      payload(msg)[:4], self.param_encoding)
 
-    def param_read(self, name, tries=3, timeout=1.5):
+    def param_read(self, name, tries=3, timeout=1.0):
         for _ in range(tries):
             self.mav.param_request_read_send(self.target_system, self.target_component,
                                              name.encode(), -1)
@@ -375,6 +401,15 @@ class Vehicle:
         raise Failure("no answer to MISSION_CLEAR_ALL")
 
     def mission_set_current(self, seq, tries=3, timeout=1.5):
+        """MAV_CMD_DO_SET_MISSION_CURRENT; MISSION_SET_CURRENT where the command is unknown."""
+        try:
+            ack = self.command(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, [seq])
+        except Failure:
+            ack = None
+        if ack is not None and ack.result != mavlink.MAV_RESULT_UNSUPPORTED:
+            if ack.result != mavlink.MAV_RESULT_ACCEPTED:
+                raise Failure("refused: %s" % enum_name("MAV_RESULT", ack.result))
+            return
         for _ in range(tries):
             self.mav.mission_set_current_send(self.target_system, self.target_component, seq)
             msg = self.recv(("MISSION_CURRENT", "MISSION_ACK"), timeout,
@@ -387,10 +422,7 @@ class Vehicle:
                     continue
                 raise Failure("refused: %s" % enum_name("MAV_MISSION_RESULT", msg.type))
             return
-        # Newer vehicles take the command instead of MISSION_SET_CURRENT.
-        ack = self.command(mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, [seq])
-        if ack.result != mavlink.MAV_RESULT_ACCEPTED:
-            raise Failure("refused: %s" % enum_name("MAV_RESULT", ack.result))
+        raise Failure("the vehicle did not change its current item to %d" % seq)
 
 
 class Param:
@@ -435,8 +467,8 @@ class Param:
             except ValueError:
                 raise usage("%s takes a number, not %r" % (self.name, text))
             if self.type != PARAM_REAL32:
-                print("mavctl: %s is %s, sent as a float32" % (self.name, enum_name("MAV_PARAM_TYPE", self.type)),
-                      file=sys.stderr)
+                kind = enum_name("MAV_PARAM_TYPE", self.type)
+                print("mavctl: %s is %s, sent as a float32" % (self.name, kind), file=sys.stderr)
             return struct.pack("<f", value)
         try:
             value = int(text, 0)
@@ -446,7 +478,8 @@ class Param:
             except ValueError:
                 f = math.nan
             if not f.is_integer():
-                raise usage("%s is %s: an integer, not %r" % (self.name, enum_name("MAV_PARAM_TYPE", self.type)[15:], text))
+                kind = enum_name("MAV_PARAM_TYPE", self.type)[15:]
+                raise usage("%s is %s: an integer, not %r" % (self.name, kind, text))
             value = int(f)
         bits = 8 * struct.calcsize(code)
         lo, hi = (0, (1 << bits) - 1) if code.isupper() else (-(1 << bits - 1), (1 << bits - 1) - 1)
@@ -581,16 +614,10 @@ def cmd_params(v, args):
             if pattern is None or fnmatch.fnmatchcase(p.name, pattern):
                 print("%-16s %s" % (p.name, p.text()))
         return EXIT_OK
-    if args.action in ("get", "set") and not args.name:
-        raise usage("params %s NAME%s" % (args.action, " VALUE" if args.action == "set" else ""))
-    if args.name and len(args.name.encode()) > 16:
-        raise usage("parameter names have at most 16 characters")
     if args.action == "get":
         print("%-16s %s" % (args.name, v.param_read(args.name).text()))
         return EXIT_OK
     if args.action == "set":
-        if args.value is None:
-            raise usage("params set NAME VALUE")
         current = v.param_read(args.name)
         raw = current.encode(args.value)
         echoed = v.param_set(args.name, raw, current.type)
@@ -607,11 +634,8 @@ def cmd_params(v, args):
 def cmd_mission(v, args):
     mtype = MISSION_TYPES[args.type]
     if args.action == "upload":
-        if not args.arg:
-            raise usage("mission upload FILE")
-        items = read_wpl(args.arg)
-        v.mission_upload(items, mtype)
-        print("uploaded %d %s items" % (len(items), args.type))
+        v.mission_upload(args.items, mtype)
+        print("uploaded %d %s items" % (len(args.items), args.type))
     elif args.action == "download":
         items = v.mission_download(mtype)
         if args.arg and args.arg != "-":
@@ -624,12 +648,8 @@ def cmd_mission(v, args):
         v.mission_clear(mtype)
         print("cleared the %s" % args.type)
     elif args.action == "current":
-        try:
-            seq = int(args.arg)
-        except (TypeError, ValueError):
-            raise usage("mission current N")
-        v.mission_set_current(seq)
-        print("current item %d" % seq)
+        v.mission_set_current(args.seq)
+        print("current item %d" % args.seq)
     return EXIT_OK
 
 
@@ -641,9 +661,7 @@ def parse_floats(words):
 
 
 def cmd_command(v, args):
-    if len(args.params) > 7:
-        raise usage("a command has at most 7 parameters")
-    return send_command(v, enum_value("MAV_CMD", args.name), parse_floats(args.params))
+    return send_command(v, args.command, args.values)
 
 
 def cmd_arm(v, args):
@@ -653,13 +671,7 @@ def cmd_arm(v, args):
 
 
 def cmd_mode(v, args):
-    base = 0
-    for word in args.base.split("|"):
-        try:
-            base |= enum_value("MAV_MODE", word)
-        except Failure:
-            base |= enum_value("MAV_MODE_FLAG", word)
-    return send_command(v, mavlink.MAV_CMD_DO_SET_MODE, [base] + parse_floats(args.custom))
+    return send_command(v, mavlink.MAV_CMD_DO_SET_MODE, args.values)
 
 
 def cmd_reboot(v, args):
@@ -667,23 +679,12 @@ def cmd_reboot(v, args):
 
 
 def cmd_stream(v, args):
-    msgid = message_id(args.message)
-    rate = args.hz.lower()
-    if rate in ("off", "stop"):
-        interval = -1.0
-    elif rate == "default":
-        interval = 0.0
-    else:
-        hz = parse_floats([rate])[0]
-        if hz < 0 or not math.isfinite(hz):
-            raise usage("HZ: a rate >= 0, 'default' or 'off'")
-        interval = -1.0 if hz == 0 else round(1e6 / hz)
-    return result_status("stream %s" % message_name(msgid),
-                         v.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, [msgid, interval]))
+    return result_status("stream %s" % message_name(args.values[0]),
+                         v.command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, args.values))
 
 
 def cmd_watch(v, args):
-    wanted = {message_name(message_id(m)) for m in args.messages} or None
+    wanted = args.wanted
     v.echo_statustext = False
     start = time.monotonic()
     end = start + args.seconds if args.seconds else math.inf
@@ -719,6 +720,58 @@ def print_rates(counts, seconds):
     sys.stdout.flush()
 
 
+def check(args):
+    """Turn the arguments into values, so that usage errors show before connecting."""
+    cmd = args.subcommand
+    if cmd == "params":
+        if args.action in ("get", "set") and not args.name:
+            raise usage("params %s NAME%s" % (args.action, " VALUE" if args.action == "set" else ""))
+        if args.action == "set" and args.value is None:
+            raise usage("params set NAME VALUE")
+        if args.action != "list" and args.name and len(args.name.encode()) > 16:
+            raise usage("parameter names have at most 16 characters")
+    elif cmd == "mission":
+        if args.action == "upload":
+            if not args.arg:
+                raise usage("mission upload FILE")
+            args.items = read_wpl(args.arg)
+        elif args.action == "current":
+            try:
+                args.seq = int(args.arg)
+            except (TypeError, ValueError):
+                raise usage("mission current N")
+    elif cmd == "command":
+        if len(args.params) > 7:
+            raise usage("a command has at most 7 parameters")
+        args.command = enum_value("MAV_CMD", args.name)
+        args.values = parse_floats(args.params)
+    elif cmd == "mode":
+        if len(args.custom) > 2:
+            raise usage("mode BASE [CUSTOM [SUBMODE]]")
+        base = 0
+        for word in args.base.split("|"):
+            try:
+                base |= enum_value("MAV_MODE", word)
+            except Failure:
+                base |= enum_value("MAV_MODE_FLAG", word)
+        args.values = [base] + parse_floats(args.custom)
+    elif cmd == "stream":
+        msgid = message_id(args.message)
+        rate = args.hz.lower()
+        if rate in ("off", "stop"):
+            interval = -1.0
+        elif rate == "default":
+            interval = 0.0
+        else:
+            hz = parse_floats([rate])[0]
+            if hz < 0 or not math.isfinite(hz):
+                raise usage("HZ: a rate >= 0, 'default' or 'off'")
+            interval = -1.0 if hz == 0 else round(1e6 / hz)
+        args.values = [msgid, interval]
+    elif cmd == "watch":
+        args.wanted = {message_name(message_id(m)) for m in args.messages} or None
+
+
 def parser():
     ap = argparse.ArgumentParser(
         prog="mavctl", description="Drive a MAVLink vehicle: parameters, missions, commands, telemetry.",
@@ -740,7 +793,8 @@ def parser():
 
     p = sub.add_parser("mission", help="upload, download, clear a mission, fence or rally points")
     p.add_argument("action", choices=("upload", "download", "clear", "current"))
-    p.add_argument("arg", nargs="?", metavar="FILE|N", help="QGC WPL 110 file (download: default stdout); item number")
+    p.add_argument("arg", nargs="?", metavar="FILE|N",
+                   help="QGC WPL 110 file (download: default stdout); current: the item number")
     p.add_argument("--type", choices=tuple(MISSION_TYPES), default="mission")
     p.set_defaults(run=cmd_mission)
 
@@ -755,7 +809,8 @@ def parser():
         p.set_defaults(run=cmd_arm)
 
     p = sub.add_parser("mode", help="MAV_CMD_DO_SET_MODE")
-    p.add_argument("base", metavar="BASE", help="base mode: number, MAV_MODE name, or MAV_MODE_FLAG names joined by |")
+    p.add_argument("base", metavar="BASE",
+                   help="base mode: number, MAV_MODE name, or MAV_MODE_FLAG names joined by |")
     p.add_argument("custom", nargs="*", metavar="CUSTOM", help="custom mode [custom sub mode]")
     p.set_defaults(run=cmd_mode)
 
@@ -779,8 +834,7 @@ def main(argv=None):
     args = parser().parse_args(argv)
     conn = None
     try:
-        if args.subcommand == "mode" and len(args.custom) > 2:
-            raise usage("mode BASE [CUSTOM [SUBMODE]]")
+        check(args)
         conn = open_link(args.connect, args.sysid, args.compid)
         v = Vehicle(conn, args.target_system, args.target_component)
         v.connect(args.timeout)

@@ -12,10 +12,6 @@ MAV_RESULT_FAILED = 4
 
 def start(vehicle, *args, **kw):
     """A unix vehicle with extra main.py arguments (e.g. "--set", "arm_veto=1")."""
-    import os  # DEVTMP
-    if os.environ.get("DEVBOARD"):  # DEVTMP
-        kw.setdefault("board", "unixdev")  # DEVTMP
-        kw.setdefault("env", {"MICROPYPATH": "firmware:boards:/tmp/devboards"})  # DEVTMP
     return vehicle(args=list(args), **kw)
 
 

@@ -108,8 +108,8 @@ def test_set_float_and_int(vehicle):
     assert msg.param_value == 7.5 and msg.param_type == 9
     msg = set_param(m, "BATT_CAPACITY", as_float("<i", 6100), 6)
     assert raw_value(msg) == struct.pack("<i", 6100) and msg.param_type == 6
-    msg = set_param(m, "FLTMODE_CH", as_float("<b", -1), 2)
-    assert raw_value(msg) == b"\xff\0\0\0"
+    msg = set_param(m, "FLTMODE_CH", as_float("<i", -1), 6)
+    assert raw_value(msg) == b"\xff\xff\xff\xff"
     assert read(m, b"SIM_SPEED").param_value == 7.5
     assert raw_value(read(m, b"BATT_CAPACITY")) == struct.pack("<i", 6100)
 
@@ -118,7 +118,7 @@ def test_set_float_and_int(vehicle):
     ("SIM_SPEED", 31.0, 9, "range"),
     ("SIM_SPEED", float("nan"), 9, "NaN"),
     ("BATT_CAPACITY", 6100.0, 9, "type"),
-    ("MAV_SYS_ID", as_float("<B", 9), 1, "read-only"),
+    ("MAV_SYS_ID", as_float("<i", 9), 6, "read-only"),
 ])
 def test_refused_set_answers_value_in_force(vehicle, name, value, ptype, why):
     m = vehicle().gcs()
@@ -134,14 +134,14 @@ def test_persist_across_restart_and_reload(vehicle, tmp_path):
     v = vehicle(storage=storage, args=["--set", "param_autosave_ms=0"])
     m = v.gcs()
     set_param(m, "WP_SPEED", 12.5, 9)
-    set_param(m, "SIM_SEED", as_float("<I", 777), 5)
+    set_param(m, "SIM_SEED", as_float("<i", 777), 6)
     assert command(m, 245, 1).result == 0
     set_param(m, "WP_SPEED", 3.5, 9)  # not saved
     v.stop()
     v = vehicle(storage=storage, args=["--set", "param_autosave_ms=0"])
     m = v.gcs()
     assert read(m, b"WP_SPEED").param_value == 12.5
-    assert raw_value(read(m, b"SIM_SEED")) == struct.pack("<I", 777)
+    assert raw_value(read(m, b"SIM_SEED")) == struct.pack("<i", 777)
     set_param(m, "WP_SPEED", 4.5, 9)
     assert command(m, 245, 0).result == 0  # reload
     assert read(m, b"WP_SPEED").param_value == 12.5
@@ -213,3 +213,20 @@ def test_interrupted_save_keeps_previous_file(vehicle, tmp_path):
     (storage / "params.new").write_bytes(os.urandom(123))  # killed while writing
     m = vehicle(storage=storage).gcs()
     assert read(m, b"WP_SPEED").param_value == 9.0
+
+
+def test_operator_control_gates_changes(vehicle):
+    p1, p2 = free_udp_port(), free_udp_port()
+    v = vehicle(links=["udpin:127.0.0.1:%d" % p1, "udpin:127.0.0.1:%d" % p2], args=["--set", "passkey=secret"])
+    boss = v.gcs(port=p1, source_system=200)
+    other = v.gcs(port=p2, source_system=201)
+    boss.mav.change_operator_control_send(1, 0, 0, b"secret")
+    assert recv(boss, "CHANGE_OPERATOR_CONTROL_ACK", 5).ack == 0
+    msg = set_param(other, "WP_SPEED", 9.0, 9)
+    assert msg.param_value == 5.0  # refused: the value in force
+    assert recv(other, "STATUSTEXT", 5, lambda t: "not in control" in t.text) is not None
+    assert command(other, 180, NAMES.index("WP_SPEED"), 9.0).result == 2  # DENIED
+    boss.mav.heartbeat_send(6, 8, 0, 0, 0)  # still here: control stays with boss
+    assert set_param(boss, "WP_SPEED", 9.5, 9).param_value == 9.5
+    msg = recv(other, "PARAM_VALUE", 5, lambda m: m.param_id == "WP_SPEED" and m.param_value == 9.5)
+    assert msg is not None  # the change reaches the other ground station too

@@ -3,6 +3,7 @@ and its steady state under MicroPython's heap_lock()."""
 import math
 import os
 import struct
+import sys
 
 import pytest
 
@@ -16,8 +17,6 @@ from mavstack.kernels import crc16
 from mavstack.services import commands as commands_service
 from mavstack.services import params as P
 from mavstack.storage import Storage
-
-import sys
 
 sys.path.insert(0, os.path.join(ROOT, "boards"))
 import unix_params  # noqa: E402
@@ -78,10 +77,10 @@ class Texts:
         pass
 
     def statustext(self, severity, text):
-        self.texts.append(text.decode() if isinstance(text, bytes) else text)
+        self.texts.append(bytes(text).decode() if isinstance(text, (bytes, bytearray)) else text)
 
 
-class Bench:
+class Rig:
     """An endpoint with the params and commands services, and pymavlink peers per link."""
 
     def __init__(self, tmp_path, table=TABLE, links=1, version=2, rate=200000, **kw):
@@ -136,7 +135,7 @@ class Bench:
         for _ in range(limit_ms):
             self.poll()
             got += self.values(link)
-            if len(got) >= N:
+            if len(got) >= self.params.count:
                 break
         return got
 
@@ -161,6 +160,7 @@ def raw_value(m):
     (("COUNT", P.UINT8, 3, 0, 1000), "range"),
     (("HALF", P.INT32, 1.5), "whole"),
     (("ODD", 42, 0), "MAV_PARAM_TYPE"),
+    (("SP ACE", P.UINT8, 0), "printable"),
 ])
 def test_declaration_errors(row, message):
     with pytest.raises(ValueError, match=message):
@@ -195,7 +195,7 @@ def test_hash_collisions_resolved_by_compare():
 
 @pytest.mark.parametrize("version", [1, 2])
 def test_list_in_order_with_count(tmp_path, version):
-    b = Bench(tmp_path, version=version)
+    b = Rig(tmp_path, version=version)
     b.send(mav.MAVLink_param_request_list_message(1, 1))
     got = b.listed()
     assert [m.param_index for m in got] == list(range(N))
@@ -213,7 +213,7 @@ def test_list_in_order_with_count(tmp_path, version):
 
 
 def test_list_is_paced_to_half_the_link(tmp_path):
-    b = Bench(tmp_path, rate=5760)
+    b = Rig(tmp_path, rate=5760)
     b.send(mav.MAVLink_param_request_list_message(1, 1))
     start = b.now
     got = b.listed()
@@ -226,7 +226,7 @@ def test_list_is_paced_to_half_the_link(tmp_path):
 
 
 def test_new_list_restarts_and_other_links_continue(tmp_path):
-    b = Bench(tmp_path, links=2, rate=5760)
+    b = Rig(tmp_path, links=2, rate=5760)
     b.send(mav.MAVLink_param_request_list_message(1, 1), link=0)
     b.send(mav.MAVLink_param_request_list_message(1, 1), link=1)
     b.poll(300)
@@ -244,7 +244,7 @@ def test_new_list_restarts_and_other_links_continue(tmp_path):
 
 
 def test_list_for_another_system_is_ignored(tmp_path):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     b.send(mav.MAVLink_param_request_list_message(2, 1))
     b.send(mav.MAVLink_param_request_list_message(1, 5))
     b.poll(100)
@@ -256,7 +256,7 @@ def test_list_for_another_system_is_ignored(tmp_path):
 @pytest.mark.parametrize("name", ["SIM_GPS_GLITCH_M", "MOT_SPOOL_TIME_S", "RTL_LOIT_TIME_S", "WP_SPEED"])
 def test_read_by_name_including_16_chars(tmp_path, name):
     assert len(name) in (16, 15, 8)
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     got = b.ask(mav.MAVLink_param_request_read_message(1, 1, name.encode(), -1))
     assert len(got) == 1
     assert got[0].param_id == name and got[0].param_index == NAMES.index(name)
@@ -267,7 +267,7 @@ def test_read_by_name_including_16_chars(tmp_path, name):
 
 
 def test_read_by_index_ignores_the_name(tmp_path):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     got = b.ask(mav.MAVLink_param_request_read_message(1, 1, b"WP_SPEED", 3))
     assert [(m.param_id, m.param_index) for m in got] == [(NAMES[3], 3)]
 
@@ -275,14 +275,14 @@ def test_read_by_index_ignores_the_name(tmp_path):
 @pytest.mark.parametrize("name, index", [(b"NO_SUCH_PARAM", -1), (b"WP_SPEEDX", -1), (b"WP_SPEE", -1),
                                          (b"", -1), (b"", N), (b"", 30000)])
 def test_read_unknown_gets_statustext_only(tmp_path, name, index):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     got = b.ask(mav.MAVLink_param_request_read_message(1, 1, name, index))
     assert got == []
     assert len(b.texts.texts) == 1 and "unknown" in b.texts.texts[0]
 
 
 def test_set_float_answered_and_broadcast(tmp_path):
-    b = Bench(tmp_path, links=2)
+    b = Rig(tmp_path, links=2)
     changes = []
     b.params.on_change = lambda name, value: changes.append((name, value))
     got = b.set("SIM_SPEED", 7.25, P.REAL32)
@@ -305,7 +305,7 @@ def test_set_float_answered_and_broadcast(tmp_path):
     ("U8", P.UINT8, "<B", 200),
 ])
 def test_set_int_bytewise(tmp_path, name, ptype, fmt, value):
-    b = Bench(tmp_path, table=TABLE if name in NAMES else MIXED)
+    b = Rig(tmp_path, table=TABLE if name in NAMES else MIXED)
     got = b.set(name, as_float(fmt, value), ptype)
     assert len(got) == 1 and got[0].param_type == ptype
     assert raw_value(got[0]) == struct.pack(fmt, value).ljust(4, b"\0")
@@ -314,11 +314,9 @@ def test_set_int_bytewise(tmp_path, name, ptype, fmt, value):
 
 
 def test_mixed_types_listed_bytewise(tmp_path):
-    b = Bench(tmp_path, table=MIXED)
+    b = Rig(tmp_path, table=MIXED)
     b.send(mav.MAVLink_param_request_list_message(1, 1))
-    got = [m for m in b.listed() if True]
-    b.poll(10)
-    got += b.values()
+    got = b.listed()
     assert [raw_value(m) for m in got] == [
         b"\x07\0\0\0", b"\xfd\0\0\0", struct.pack("<I", 1000), struct.pack("<hh", -1000, 0),
         struct.pack("<I", 12345), struct.pack("<i", -5), struct.pack("<f", 1.5), b"\x01\0\0\0"]
@@ -341,7 +339,7 @@ def test_mixed_types_listed_bytewise(tmp_path):
     ("RO", as_float("<B", 7), P.UINT8, "read-only"),
 ])
 def test_set_refused_keeps_value(tmp_path, name, value, ptype, reason):
-    b = Bench(tmp_path, table=TABLE if name in NAMES else MIXED, links=2)
+    b = Rig(tmp_path, table=TABLE if name in NAMES else MIXED, links=2)
     before = b.params.get(name)
     got = b.set(name, value, ptype)
     assert len(got) == 1 and got[0].param_id == name
@@ -353,8 +351,29 @@ def test_set_refused_keeps_value(tmp_path, name, value, ptype, reason):
     assert b.values(1) == []  # nothing changed: nothing to tell the others
 
 
+@pytest.mark.parametrize("name", ["SIM_GPS_GLITCH_M", "RTL_LOIT_TIME_S"])
+def test_set_16_and_15_char_names(tmp_path, name):
+    b = Rig(tmp_path)
+    got = b.set(name, 1.25, P.REAL32)
+    assert [(m.param_id, m.param_value) for m in got] == [(name, 1.25)]
+    assert b.params.get(name) == 1.25
+
+
+def test_name_padding_after_nul_is_ignored(tmp_path):
+    b = Rig(tmp_path)
+    got = b.ask(mav.MAVLink_param_request_read_message(1, 1, b"WP_SPEED\0junk!!!", -1))
+    assert [m.param_id for m in got] == ["WP_SPEED"]
+
+
+def test_unprintable_unknown_name_is_reported_safely(tmp_path):
+    b = Rig(tmp_path)
+    got = b.ask(mav.MAVLink_param_request_read_message(1, 1, b"\xff\xfeBAD\x01NAME\x80\x90", -1))
+    assert got == []
+    assert b.texts.texts == ["unknown param ??BAD?NAME??"]
+
+
 def test_set_unknown_and_foreign_targets(tmp_path):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     assert b.set("NO_SUCH", 1.0, P.REAL32) == []
     assert "unknown" in b.texts.texts[0]
     assert b.set("SIM_SPEED", 8.0, P.REAL32, target=(2, 1)) == []
@@ -364,7 +383,7 @@ def test_set_unknown_and_foreign_targets(tmp_path):
 
 
 def test_set_refused_without_operator_control(tmp_path):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
 
     class NotYou:
         def allows(self, link):
@@ -380,16 +399,16 @@ def test_set_refused_without_operator_control(tmp_path):
 
 
 def test_reboot_flag_is_reported(tmp_path):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     b.set("SERIAL1_BAUD", as_float("<i", 115200), P.INT32)
     assert any("reboot" in t for t in b.texts.texts)
 
 
 def test_c_cast_encoding(tmp_path):
-    b = Bench(tmp_path, table=MIXED, encoding="c_cast")
+    b = Rig(tmp_path, table=MIXED, encoding="c_cast")
     assert b.ep.capabilities & (1 << 17) and not b.ep.capabilities & (1 << 4)
     b.send(mav.MAVLink_param_request_list_message(1, 1))
-    got = {m.param_id: m for m in b.listed(limit_ms=50)}
+    got = {m.param_id: m for m in b.listed()}
     assert [got[row[0]].param_value for row in MIXED] == [7.0, -3.0, 1000.0, -1000.0, 12345.0, -5.0, 1.5, 1.0]
     assert b.set("I32", 6000.0, P.INT32)[0].param_value == 6000.0
     # A C-cast ground station may tag every value REAL32: the value is still the number.
@@ -404,12 +423,12 @@ def test_c_cast_encoding(tmp_path):
 
 
 def test_bytewise_capability(tmp_path):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     assert b.ep.capabilities & (1 << 4) and not b.ep.capabilities & (1 << 17)
 
 
 def test_do_set_parameter(tmp_path):
-    b = Bench(tmp_path, links=2)
+    b = Rig(tmp_path, links=2)
     i = NAMES.index("BATT_CAPACITY")
     got = b.command(180, i, 7000.0)
     b.poll(5)
@@ -431,7 +450,7 @@ def test_do_set_parameter(tmp_path):
 # --- application API ----------------------------------------------------------------
 
 def test_application_api(tmp_path):
-    b = Bench(tmp_path, links=2)
+    b = Rig(tmp_path, links=2)
     i = b.params.index("SIM_SPEED")
     assert b.params.value(i) == 5.0 and b.params.name(i) == "SIM_SPEED" and b.params.type(i) == P.REAL32
     assert b.params.set("SIM_SPEED", 6.5) is True
@@ -452,19 +471,19 @@ def test_application_api(tmp_path):
 # --- persistence --------------------------------------------------------------------
 
 def test_save_and_boot_keep_values(tmp_path):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     assert any("defaults" in t for t in b.texts.texts)  # nothing stored yet
     b.set("SIM_SPEED", 9.5, P.REAL32)
     b.set("BATT_CAPACITY", as_float("<i", 4321), P.INT32)
     acks = [m for m in b.command(245, 1) if m.get_type() == "COMMAND_ACK"]
     assert acks[0].result == 0
-    b2 = Bench(tmp_path)
+    b2 = Rig(tmp_path)
     assert b2.params.get("SIM_SPEED") == 9.5 and b2.params.get("BATT_CAPACITY") == 4321
     assert b2.texts.texts == []
 
 
 def test_reload_and_reset(tmp_path):
-    b = Bench(tmp_path, links=2)
+    b = Rig(tmp_path, links=2)
     b.set("SIM_SPEED", 9.5, P.REAL32)
     b.command(245, 1)
     b.set("SIM_SPEED", 3.0, P.REAL32)
@@ -484,7 +503,7 @@ def test_reload_and_reset(tmp_path):
 
 
 def test_reload_without_file_keeps_values(tmp_path):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     b.set("SIM_SPEED", 9.5, P.REAL32)
     acks = [m for m in b.command(245, 0) if m.get_type() == "COMMAND_ACK"]
     assert acks[0].result == 4  # FAILED
@@ -492,13 +511,13 @@ def test_reload_without_file_keeps_values(tmp_path):
 
 
 def test_autosave(tmp_path):
-    b = Bench(tmp_path, autosave_ms=200)
+    b = Rig(tmp_path, autosave_ms=200)
     b.set("SIM_SPEED", 9.5, P.REAL32)
     b.poll(100)
     assert not b.ep.storage.exists("params")
     b.poll(150)
     assert b.ep.storage.exists("params")
-    assert Bench(tmp_path).params.get("SIM_SPEED") == 9.5
+    assert Rig(tmp_path).params.get("SIM_SPEED") == 9.5
 
 
 def _stored(tmp_path):
@@ -507,7 +526,7 @@ def _stored(tmp_path):
 
 @pytest.mark.parametrize("damage", ["truncate", "garbage", "empty", "flip", "bad_count"])
 def test_corrupt_file_means_defaults_and_next_save_works(tmp_path, damage):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     b.set("SIM_SPEED", 9.5, P.REAL32)
     assert b.params.save()
     data = bytearray(_stored(tmp_path).read_bytes())
@@ -523,26 +542,26 @@ def test_corrupt_file_means_defaults_and_next_save_works(tmp_path, damage):
         data[6] += 1
         struct.pack_into("<H", data, len(data) - 2, crc16(data, 0, len(data) - 2, 0xFFFF))
     _stored(tmp_path).write_bytes(bytes(data))
-    b2 = Bench(tmp_path)
+    b2 = Rig(tmp_path)
     assert b2.params.get("SIM_SPEED") == 5.0
     assert any("corrupt" in t for t in b2.texts.texts)
     b2.set("SIM_SPEED", 11.0, P.REAL32)
     assert b2.params.save()
-    assert Bench(tmp_path).params.get("SIM_SPEED") == 11.0
+    assert Rig(tmp_path).params.get("SIM_SPEED") == 11.0
 
 
 def test_leftover_new_file_never_replaces_the_good_one(tmp_path):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     b.set("SIM_SPEED", 9.5, P.REAL32)
     b.params.save()
     (tmp_path / "storage" / "params.new").write_bytes(os.urandom(300))  # a save cut short
-    b2 = Bench(tmp_path)
+    b2 = Rig(tmp_path)
     assert b2.params.get("SIM_SPEED") == 9.5 and b2.texts.texts == []
     assert not (tmp_path / "storage" / "params.new").exists()
 
 
 def test_failed_write_keeps_previous_file(tmp_path, monkeypatch):
-    b = Bench(tmp_path)
+    b = Rig(tmp_path)
     b.set("SIM_SPEED", 9.5, P.REAL32)
     b.params.save()
     good = _stored(tmp_path).read_bytes()
@@ -560,13 +579,13 @@ def test_failed_write_keeps_previous_file(tmp_path, monkeypatch):
 def test_firmware_update_keeps_remaining_values(tmp_path):
     old = (("KEEP_F", P.REAL32, 1.0, 0.0, 10.0), ("GONE", P.UINT8, 3), ("KEEP_I", P.INT16, 5),
            ("RETYPED", P.UINT8, 1), ("NARROWED", P.REAL32, 5.0, 0.0, 10.0))
-    b = Bench(tmp_path, table=old)
+    b = Rig(tmp_path, table=old)
     for name, value in (("KEEP_F", 2.5), ("GONE", 4), ("KEEP_I", -7), ("RETYPED", 2), ("NARROWED", 8.0)):
         b.params.set(name, value)
     b.params.save()
     new = (("NEW", P.UINT16, 42), ("KEEP_I", P.INT16, 5), ("RETYPED", P.INT32, 1),
            ("NARROWED", P.REAL32, 5.0, 0.0, 6.0), ("KEEP_F", P.REAL32, 1.0, 0.0, 10.0))
-    b2 = Bench(tmp_path, table=new)
+    b2 = Rig(tmp_path, table=new)
     p = b2.params
     assert (p.get("NEW"), p.get("KEEP_I"), p.get("KEEP_F")) == (42, -7, 2.5)
     assert (p.get("RETYPED"), p.get("NARROWED")) == (1, 5.0)  # changed type / now out of range
@@ -577,15 +596,12 @@ def test_firmware_update_keeps_remaining_values(tmp_path):
 
 @pytest.mark.parametrize("args", [("bytewise", 2, 5760), ("c_cast", 1, 5760), ("bytewise", 1, 200000)])
 @pytest.mark.parametrize("portable", [False, True])
-def test_steady_state_under_heap_lock(args, portable):
-    env = {"MAVSTACK_PORTABLE": "1"} if portable else {}
-    old = {k: os.environ.get(k) for k in env}
-    os.environ.update(env)
-    try:
-        r = run_mpy(os.path.join(ROOT, "tests", "mpy", "params_steady.py"), *args)
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
+def test_steady_state_under_heap_lock(args, portable, monkeypatch):
+    """A paced list, reads by index and name, accepted PARAM_SETs and DO_SET_PARAMETERs,
+    with the heap locked (status, params and commands services, in-memory link)."""
+    if portable:
+        monkeypatch.setenv("MAVSTACK_PORTABLE", "1")
+    r = run_mpy(os.path.join(ROOT, "tests", "mpy", "params_steady.py"), *args,
+                path=[os.path.join(ROOT, "tests", "mpy")], timeout=120)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert r.stdout.startswith("ok values=100 reads=4"), r.stdout + r.stderr
+    assert r.stdout.startswith("ok values=100 reads=4 sets=4 commands=2"), r.stdout + r.stderr

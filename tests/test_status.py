@@ -4,13 +4,18 @@ Identity and life cycle (HEARTBEAT), SYS_STATUS figures, SYSTEM_TIME, PING,
 STATUSTEXT, AUTOPILOT_VERSION, ground-station loss, MAVLink 1 and 2 ground stations,
 operator control. Steady state under heap_lock is in test_status_heap.py.
 """
+import os
+import sys
 import time
 
 from pymavlink import mavutil
 
-from conftest import Vehicle, free_udp_port, recv
-from gcs_tools import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, command, listen, request, run, start,
+from conftest import ROOT, free_udp_port, recv
+from gcs_tools import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, command, request, run, start,
                        statustext, vehicle_heartbeat)
+
+sys.path.insert(0, os.path.join(ROOT, "tests", "mpy"))
+from harness import Bench, loop_pair  # noqa: E402
 
 MAV_STATE_BOOT = 1
 MAV_STATE_STANDBY = 3
@@ -244,3 +249,101 @@ def test_change_operator_control_without_passkey_is_granted(vehicle):
     r = recv(m, "CHANGE_OPERATOR_CONTROL_ACK", 5)
     assert r is not None and r.ack == 0
     assert run(m, 400, 1) == MAV_RESULT_ACCEPTED
+
+
+# --- in-process, on the bench (tests/mpy/harness.py) ---------------------------------
+
+
+def _texts(b):
+    got = []
+
+    def watch(msgid, p):
+        if msgid == 253:
+            got.append((p[0], bytes(p[1:51]).rstrip(b"\0")))
+        elif msgid == 1:
+            got.append(("sys_status", p[22] | p[23] << 8))  # errors_count1: texts dropped
+
+    b.watch = watch
+    return got
+
+
+def test_statustext_queue_is_bounded_drops_oldest_and_truncates():
+    b = Bench()
+    status = b.ep.services["status"]
+    got = _texts(b)
+    for i in range(12):
+        b.ep.statustext(6, "text %d" % i)
+    status.statustext(2, "x" * 80)
+    assert status.texts.count == 8 and status.texts.dropped == 5
+    b.run(20)
+    texts = [t for t in got if t[0] != "sys_status"]
+    assert [t[1] for t in texts[:7]] == [b"text %d" % i for i in range(5, 12)]
+    assert texts[7] == (2, b"x" * 50)
+    assert len(texts) == 8
+    b.run(1000)
+    assert ("sys_status", 5) in got
+
+
+def test_statustext_paced_on_a_slow_link():
+    b = Bench()
+    b.ep.add_link(loop_pair(bytes_per_s=5760)[0])  # a 57600 baud radio
+    b.run(1)
+    status = b.ep.services["status"]
+    got = _texts(b)
+    for i in range(4):
+        status.statustext(6, "slow %d" % i)
+    b.run(100)
+    assert 2 <= len([t for t in got if t[0] != "sys_status"]) <= 3  # about one per 46 ms
+    b.run(200)
+    assert len([t for t in got if t[0] != "sys_status"]) == 4
+
+
+def test_gcs_presence_callbacks():
+    b = Bench(options={"gcs_timeout_ms": "300"})
+    status = b.ep.services["status"]
+    link = b.ep.links[0]
+    events = []
+    status.on_gcs_lost = lambda l: events.append(("lost", l.index))
+    status.on_gcs_regained = lambda l: events.append(("regained", l.index))
+    g = b.gcs()
+    assert not status.gcs_present(link)
+    b.send(g.frame(0, 0, 2, 3, 0, 0, 3))  # another vehicle's heartbeat is not a GCS
+    b.run(10)
+    assert events == [] and not status.gcs_present(link)
+    for _ in range(5):
+        b.send(g.heartbeat())
+        b.run(100)
+    assert events == [("regained", 0)] and status.gcs_present(link)
+    b.run(400)
+    assert events == [("regained", 0), ("lost", 0)] and not status.gcs_present(link)
+    b.send(g.heartbeat())
+    b.run(1)
+    assert events[-1] == ("regained", 0) and status.gcs_present(link)
+
+
+def test_ground_station_clock_is_adopted_until_the_application_sets_one():
+    b = Bench()
+    status = b.ep.services["status"]
+    g = b.gcs()
+    assert status.unix_usec() == 0
+    b.send(g.frame(2, 1700000000000000, 0))
+    b.run(250)
+    assert 1700000000250000 <= status.unix_usec() <= 1700000000252000
+    status.set_clock(1800000000000000)
+    b.send(g.frame(2, 1700000000000000, 0))
+    b.run(1)
+    assert status.unix_usec() >= 1800000000000000
+
+
+def test_state_override_and_mode_hook():
+    b = Bench()
+    status = b.ep.services["status"]
+    b.run(1)
+    assert status.system_status == 3
+    status.set_state(5)  # MAV_STATE_CRITICAL
+    assert status.arm(True) == 0 and status.system_status == 5
+    status.set_state(0)
+    assert status.system_status == 4  # ACTIVE: armed
+    status.mode_check = lambda base, custom: "no AUTO here" if base & 4 else None
+    assert status.set_mode(4) == 2 and status.reason == "no AUTO here" and not status.auto
+    assert status.set_mode(16, 7) == 0 and status.base_mode == 128 | 16 | 1 and status.custom_mode == 7

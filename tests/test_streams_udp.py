@@ -97,7 +97,7 @@ def test_1_10_and_50_hz_are_met(vehicle):
 
 def test_57600_link_keeps_the_budget_with_fair_shares(vehicle):
     bps = 5760
-    v = vehicle(args=["--set", "UDP_BYTES_PER_S=%d" % bps])
+    v = vehicle(args=["--set", "udp_bytes_per_s=%d" % bps])
     m = v.gcs()
     asked = {"ATTITUDE": (30, 100), "GLOBAL_POSITION_INT": (33, 100), "VFR_HUD": (74, 50), "SCALED_IMU": (26, 50)}
     for name, (msgid, hz) in asked.items():  # about twice what the link carries
@@ -165,8 +165,7 @@ def test_two_ground_stations_get_their_own_rates(vehicle):
     assert set_interval(g1, 26, 50000) == MAV_RESULT_ACCEPTED  # SCALED_IMU on link 1 only
     assert set_interval(g2, 74, 1e6 / 15, target=2) == MAV_RESULT_ACCEPTED  # VFR_HUD on every link
     assert get_interval(g1, 30) == 200000 and get_interval(g2, 30) == 40000
-    drain(g1, 0.3)
-    drain(g2, 0.3)
+    collect([g1, g2], 0.5)  # what queued up meanwhile
     times, _ = collect([g1, g2], 4.0, {"ATTITUDE", "SCALED_IMU", "VFR_HUD"})
     assert abs(rate(times[0]["ATTITUDE"]) - 5) <= 0.5
     assert abs(rate(times[1]["ATTITUDE"]) - 25) <= 1.5
@@ -201,3 +200,54 @@ def test_message_interval_set_get_disable_restore(vehicle):
     assert run(m, REQUEST_MESSAGE, 105) == MAV_RESULT_ACCEPTED
     hi = recv(m, "HIGHRES_IMU", 5)
     assert hi is not None and hi.zacc < -9
+
+
+def test_simulated_vehicle_fills_every_slot_and_flies(vehicle):
+    from mission_gcs import MissionClient, Item, LAT0, LON0
+
+    v = vehicle()
+    m = v.gcs()
+    for msgid in (250, 251, 252, 254):  # DEBUG_VECT, NAMED_VALUE_FLOAT/INT, DEBUG: asked for only
+        assert set_interval(m, msgid, 200000) == MAV_RESULT_ACCEPTED
+    m.mav.request_data_stream_send(m.target_system, m.target_component, 0, 5, 1)
+    drain(m, 0.3)
+    times, _ = collect([m], 1.5)
+    slots = {"GPS_RAW_INT", "GPS_STATUS", "SCALED_IMU", "RAW_IMU", "RAW_PRESSURE", "SCALED_PRESSURE", "ATTITUDE",
+             "ATTITUDE_QUATERNION", "LOCAL_POSITION_NED", "GLOBAL_POSITION_INT", "RC_CHANNELS_SCALED",
+             "RC_CHANNELS_RAW", "RC_CHANNELS", "SERVO_OUTPUT_RAW", "NAV_CONTROLLER_OUTPUT", "VFR_HUD",
+             "HIGHRES_IMU", "OPTICAL_FLOW", "BATTERY_STATUS", "EXTENDED_SYS_STATE", "NAMED_VALUE_FLOAT",
+             "NAMED_VALUE_INT", "DEBUG", "DEBUG_VECT", "SYS_STATUS", "SYSTEM_TIME"}
+    assert slots - set(times[0]) == set()
+
+    gps = recv(m, "GPS_RAW_INT", 2)
+    assert gps.fix_type >= 3 and gps.satellites_visible >= 6
+    assert recv(m, "HIGHRES_IMU", 2).zacc == approx_g()
+    assert 940 < recv(m, "SCALED_PRESSURE", 2).press_abs < 970  # 488 m above the sea
+    bat = recv(m, "BATTERY_STATUS", 2)
+    assert 3000 < bat.voltages[0] < 4300 and 0 <= bat.battery_remaining <= 100
+    sys_status = recv(m, "SYS_STATUS", 2)
+    assert abs(sys_status.voltage_battery - sum(bat.voltages[:3])) < 100
+    assert recv(m, "EXTENDED_SYS_STATE", 2).landed_state == 1  # MAV_LANDED_STATE_ON_GROUND
+    consumed0 = bat.current_consumed
+
+    # A mission 60 m north at 10 m, flown in AUTO: the telemetry follows the model.
+    plan = [Item(3, 22, 0, 1, 0.0, 0.0, 0.0, 0.0, LAT0, LON0, 10.0),
+            Item(3, 16, 0, 1, 0.0, 2.0, 0.0, 0.0, LAT0 + 5400, LON0, 10.0)]
+    assert MissionClient(m).upload(plan) == 0
+    assert run(m, 400, 1) == MAV_RESULT_ACCEPTED  # arm
+    assert run(m, 176, 1 | 4) == MAV_RESULT_ACCEPTED  # AUTO
+    climbing = recv(m, "GLOBAL_POSITION_INT", 10, lambda g: g.relative_alt > 3000 and g.vz < 0)
+    assert climbing is not None
+    moving = recv(m, "VFR_HUD", 20, lambda h: h.groundspeed > 1)
+    assert moving is not None and moving.throttle > 0
+    assert recv(m, "GLOBAL_POSITION_INT", 5, lambda g: g.lat > LAT0 + 500 and g.vx > 0) is not None
+    assert recv(m, "ATTITUDE", 2, lambda a: a.pitch < -0.05) is not None  # nose down to go forward
+    assert recv(m, "SERVO_OUTPUT_RAW", 2, lambda s: s.servo1_raw > 1300) is not None
+    assert recv(m, "EXTENDED_SYS_STATE", 2).landed_state == 2  # in the air
+    assert recv(m, "BATTERY_STATUS", 2, lambda b: b.current_battery > 500).current_consumed > consumed0
+
+
+def approx_g():
+    import pytest
+
+    return pytest.approx(-9.81, abs=0.05)

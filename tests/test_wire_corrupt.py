@@ -259,7 +259,7 @@ def test_micropython_random_bytes_never_raise(tmp_path, runtime, portable):
     while len(out) < 500000:
         r = rnd.random()
         if r < 0.3:
-            out += bytes(rnd.getrandbits(8) for _ in range(rnd.randint(1, 300)))
+            out += rnd.randbytes(rnd.randint(1, 300))
         elif r < 0.6:
             out += bytes(rnd.choice([0xFD, 0xFE, 0, 255, 9, 1]) for _ in range(rnd.randint(1, 30)))
         else:

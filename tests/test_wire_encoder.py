@@ -7,11 +7,11 @@ import pytest
 
 from mavstack.encoder import Encoder
 from mavstack.endpoint import Endpoint
-from wire_oracle import OURS, decode_frames, fmt_table, reference
+from wire_oracle import OURS, decode_frames, reference
 
 COMMON = OURS["common"]
 CRC_LEN = COMMON.CRC_LEN
-FMT = fmt_table(COMMON)
+FMT = COMMON.FMT
 M2 = reference("common", 2)
 ATTITUDE, HEARTBEAT, PARAM_VALUE, SYS_STATUS, COMMAND_ACK = 30, 0, 22, 1, 77
 SETUP_SIGNING = 256  # id > 255: MAVLink 2 only

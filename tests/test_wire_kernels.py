@@ -14,7 +14,7 @@ def kernel_cases(rnd, n):
     lines, expect = [], []
     for _ in range(n):
         size = rnd.choice([0, 1, 2, 17, 280, rnd.randint(0, 600)])
-        data = bytes(rnd.getrandbits(8) for _ in range(size))
+        data = rnd.randbytes(size)
         hx = data.hex() or "-"
         start = rnd.randint(0, size)
         end = rnd.randint(start, size)
@@ -35,8 +35,9 @@ def kernel_cases(rnd, n):
             lines.append("stx %s %d %d" % (marked.hex() or "-", start, end))
             expect.append(str(found))
         elif op == 2:
-            dst = bytearray(rnd.getrandbits(8) for _ in range(rnd.randint(1, 1023)))
-            src = bytes(rnd.getrandbits(8) for _ in range(rnd.randint(0, 5000)))
+            dst = bytearray(rnd.randbytes(rnd.choice([280, 1023, rnd.randint(1, 300)])))
+            # Source offsets up to a 4 KiB chunk and beyond: s is packed above bit 10.
+            src = rnd.randbytes(rnd.randint(0, 5000) if rnd.random() < 0.15 else rnd.randint(0, 300))
             d = rnd.randrange(len(dst))
             s = rnd.randint(0, len(src))
             k = rnd.randint(0, min(len(dst) - d, len(src) - s))

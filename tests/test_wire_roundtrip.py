@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from mavstack.encoder import Encoder
 from mavstack.parser import Parser
-from wire_oracle import (OURS, classes, decode_frames, fields, flat, fmt_table, full_len,
+from wire_oracle import (OURS, classes, decode_frames, fields, flat, full_len,
                          has_nan, pack, random_values, run_tool, same, values_strategy,
                          read_parsed)
 
@@ -30,7 +30,7 @@ def full_payload(frame, dialect, msgid):
 def full_values(dialect, cls, values):
     """Arguments for pack_into(FMT): the message's values, then zeros for the MAVLink 2
     extension fields a MAVLink 1 class does not have."""
-    fmt = fmt_table(OURS[dialect])[cls.id]
+    fmt = OURS[dialect].FMT[cls.id]
     vals = flat(cls, values)
     zeros = struct.unpack(fmt, bytes(struct.calcsize(fmt)))
     return vals + list(zeros[len(vals):])
@@ -65,7 +65,7 @@ def check_parse(dialect, version, cls, values, seq, sysid, compid, signed=False)
     # Raw bytes: pymavlink's payload, zero-extended to the full length.
     assert f["payload"] == full_payload(frame, dialect, cls.id)
     # Values: unpacked with our FMT, as the stack reads them.
-    fmt = fmt_table(OURS[dialect])[cls.id]
+    fmt = OURS[dialect].FMT[cls.id]
     assert struct.calcsize(fmt) == full_len(dialect, cls.id)
     unpacked = struct.unpack(fmt, f["payload"])
     expect = full_values(dialect, cls, values)
@@ -77,7 +77,7 @@ def check_encode(dialect, version, cls, values, seq, sysid, compid):
     enc = Encoder(OURS[dialect].CRC_LEN, version)
     enc.seq = seq
     off = enc.begin()
-    struct.pack_into(fmt_table(OURS[dialect])[cls.id], enc.buf, off,
+    struct.pack_into(OURS[dialect].FMT[cls.id], enc.buf, off,
                      *full_values(dialect, cls, values))
     n = enc.finish(cls.id, sysid, compid)
     ours = bytes(enc.buf[:n])
@@ -208,7 +208,7 @@ def test_micropython_parses_and_encodes_every_message(tmp_path, dialect, portabl
             v, cls.id, seq, sysid, compid, signed)
         assert g["payload"] == full_payload(fr, dialect, cls.id), cls.msgname
         assert g["signature"] == (fr[-13:] if signed else b"")
-        unpacked = struct.unpack(fmt_table(OURS[dialect])[cls.id], g["payload"])
+        unpacked = struct.unpack(OURS[dialect].FMT[cls.id], g["payload"])
         assert same(list(unpacked), full_values(dialect, cls, vals)), cls.msgname
 
     encoded = enc_out.read_text().split()

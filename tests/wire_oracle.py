@@ -27,7 +27,6 @@ from mavstack.dialects import common as our_common  # noqa: E402
 from mavstack.dialects import seed2012 as our_seed2012  # noqa: E402
 
 OURS = {"common": our_common, "seed2012": our_seed2012}
-fmt_table = wire_tool.fmt_table
 
 # --- pymavlink reference modules -----------------------------------------------------
 
@@ -135,7 +134,7 @@ def _rand_scalar(t, rnd):
 def _rand_field(t, n, rnd):
     if t == "char":
         k = n if rnd.random() < 0.5 else rnd.randint(0, n)
-        return bytes(rnd.getrandbits(8) for _ in range(k))
+        return rnd.randbytes(k)
     if n:
         return [_rand_scalar(t, rnd) for _ in range(n)]
     return _rand_scalar(t, rnd)
@@ -372,7 +371,7 @@ def garbage(rnd, dialect="common"):
     swallows what follows."""
     kind = rnd.random()
     if kind < 0.4:
-        return bytes(rnd.getrandbits(8) for _ in range(rnd.randint(1, 40)))
+        return rnd.randbytes(rnd.randint(1, 40))
     if kind < 0.6:
         return bytes(rnd.choice([0xFD, 0xFE, 0x00, 0x55]) for _ in range(rnd.randint(1, 6)))
     ids = sorted(OURS[dialect].CRC_LEN)

@@ -24,7 +24,7 @@ class Link:
         self.bytes_per_s = transport.bytes_per_s
         self.tx_bytes = 0
         self.tx_dropped = 0
-        self._rxbuf = bytearray(_RX_CHUNK)
+        self._rxbuf = bytearray(getattr(transport, "rx_chunk", _RX_CHUNK))
 
     def poll(self):
         """Read and parse whatever the transport has, without waiting."""

@@ -12,7 +12,8 @@ application's to carry out: runner.item has the fields decoded, runner.elapsed_m
 times a CONDITION_DELAY, runner.next_nav() finds the position a CONDITION_DISTANCE
 refers to.
 
-    runner = ep.services["missions"].runner
+    runner = ep.services["missions"].runner   (made by missions.create unless the board
+                                      says MISSION_RUNNER = False; MissionRunner(missions))
     runner.run() / runner.pause()     entering / leaving the mode that flies the mission
     runner.state                      MISSION_STATE: 1 no mission, 2 not started, 3 active,
                                       4 paused, 5 complete
@@ -21,12 +22,12 @@ refers to.
     runner.waiting, runner.proceed()  held at an item without autocontinue; go on
     runner.start(first, last)         MAV_CMD_MISSION_START (also sent by ground stations)
     runner.set_current(seq, reset)    MISSION_SET_CURRENT, MAV_CMD_DO_SET_MISSION_CURRENT
-    runner.on_item                    hook(item) when the current item changes
+    runner.on_item                    hook(runner) when the current item changes
 Decoding an item makes floats: that happens once per item, not per tick.
 """
 import struct
 
-from .compat import const, ticks_ms, ticks_diff
+from .compat import const, ticks_diff
 from .fields import f32_to_int
 from .mission_store import RECORD_SIZE
 
@@ -37,79 +38,66 @@ PAUSED = const(4)
 COMPLETE = const(5)
 
 _CMD_DO_JUMP = const(177)
+_CMD_DO_SET_MISSION_CURRENT = const(224)
+_CMD_MISSION_START = const(300)
+_RESULT_ACCEPTED = const(0)
+_RESULT_DENIED = const(2)
+_RESULT_FAILED = const(4)
 _LOCAL_FRAMES = (1, 4, 7, 8, 9, 12, 20, 21)
 
 
 class Item:
     """One mission item, decoded from its record."""
 
-    def __init__(self):
-        self.seq = 0
-        self.command = 0
-        self.frame = 0
-        self.autocontinue = 1
-        self.param1 = self.param2 = self.param3 = self.param4 = 0.0
-        self.x = self.y = 0  # as stored: degrees * 1e7, or metres * 1e4 in local frames
-        self.z = 0.0
-
     def decode(self, seq, rec):
         self.seq = seq
         (self.param1, self.param2, self.param3, self.param4, self.x, self.y, self.z,
          self.command, self.frame, self.autocontinue) = struct.unpack_from("<ffffiifHBB", rec, 0)
+        # x, y as stored: degrees * 1e7, or metres * 1e4 in local frames.
+        scale = 1e4 if self.frame in _LOCAL_FRAMES else 1e7
+        self.lat = self.x / scale
+        self.lon = self.y / scale
+        c = self.command
+        self.is_nav = c < 100 or 5000 <= c < 5200  # MAV_CMD_NAV_* ids
+        self.is_condition = 100 <= c < 160
+        self.is_do = 160 <= c < 250
         return self
-
-    @property
-    def local(self):
-        return self.frame in _LOCAL_FRAMES
-
-    @property
-    def lat(self):
-        """Latitude in degrees (x in metres in a local frame)."""
-        return self.x / (1e4 if self.local else 1e7)
-
-    @property
-    def lon(self):
-        return self.y / (1e4 if self.local else 1e7)
-
-    @property
-    def is_nav(self):
-        return self.command < 100 or 5000 <= self.command < 5200  # MAV_CMD_NAV_* ids
-
-    @property
-    def is_condition(self):
-        return 100 <= self.command < 160
-
-    @property
-    def is_do(self):
-        return 160 <= self.command < 250
-
-    def __repr__(self):
-        return "Item(%d cmd=%d frame=%d p=(%g,%g,%g,%g) x=%d y=%d z=%g ac=%d)" % (
-            self.seq, self.command, self.frame, self.param1, self.param2, self.param3,
-            self.param4, self.x, self.y, self.z, self.autocontinue)
 
 
 class MissionRunner:
-    def __init__(self, missions, jump_slots=16):
+    def __init__(self, missions):
         self.missions = missions
+        missions.runner = self
+        jump_slots = missions.jump_slots
         self.store = missions.stores[0]
         self.current = 0
         self.last = -1  # the last item to run (MISSION_START param2), -1: to the end
         self.state = NOT_STARTED if self.store.count else NO_MISSION
-        self.item = None
         self.waiting = False
         self.running = False  # in the mode that flies the mission (run() / pause())
-        self.started_ms = ticks_ms()  # when the current item became current
+        self.started_ms = missions.ep.now  # when the current item became current
         self.on_item = None
         self._item = Item()
+        self._decoded = False  # _item holds the current item
+        self._auto = 1  # its autocontinue
         self._rec = bytearray(RECORD_SIZE)
         self._jump_seq = [-1] * jump_slots
         self._jump_done = [0] * jump_slots
         self._load(0)
+        ep = missions.ep
+        ep.commands[_CMD_DO_SET_MISSION_CURRENT] = self._cmd_set_current
+        ep.commands[_CMD_MISSION_START] = self._cmd_start
 
     @property
-    def count(self):
-        return self.store.count
+    def item(self):
+        """The current item, decoded (None without a plan). Decoding makes floats, so it
+        happens here, when the application asks, not on the protocol's paths."""
+        if not self._decoded:
+            if not self.store.read(self.current, self._rec):
+                return None
+            self._item.decode(self.current, self._rec)
+            self._decoded = True
+        return self._item
 
     @property
     def mode(self):
@@ -121,7 +109,7 @@ class MissionRunner:
 
     def elapsed_ms(self, now=None):
         """Time since the current item became current (CONDITION_DELAY, LOITER_TIME)."""
-        return ticks_diff(ticks_ms() if now is None else now, self.started_ms)
+        return ticks_diff(self.missions.ep.now if now is None else now, self.started_ms)
 
     def read(self, seq, item=None):
         """Any item of the plan, decoded (a new Item unless one is given); None if absent."""
@@ -133,7 +121,7 @@ class MissionRunner:
         """The first NAV item after `after` (default: the current item), or None."""
         seq = (self.current if after < 0 else after) + 1
         item = Item()
-        while seq < self.count:
+        while seq < self.store.count:
             if self.read(seq, item) is not None and item.is_nav:
                 return item
             seq += 1
@@ -145,7 +133,7 @@ class MissionRunner:
         self._reset_jumps()
         self.last = -1
         self.waiting = False
-        count = self.count
+        count = self.store.count
         if current < 0:
             current = self.current
         if current >= count:
@@ -162,7 +150,7 @@ class MissionRunner:
 
     def start(self, first=0, last=-1):
         """Run the plan from `first`; stop after `last` (-1, 0 or out of range: the end)."""
-        count = self.count
+        count = self.store.count
         if count == 0 or first < 0 or first >= count:
             return False
         self.last = last if first <= last < count and last > 0 else -1
@@ -189,7 +177,7 @@ class MissionRunner:
             self.missions.current_changed()
 
     def set_current(self, seq, reset=False):
-        if seq < 0 or seq >= self.count:
+        if seq < 0 or seq >= self.store.count:
             return False
         if reset:
             self._reset_jumps()
@@ -205,10 +193,10 @@ class MissionRunner:
 
     def reached(self):
         """The application is done with the current item -> False if not running a mission."""
-        if self.state != ACTIVE or self.item is None or self.waiting:
+        if self.state != ACTIVE or self.current >= self.store.count or self.waiting:
             return False
         self.missions.send_reached(self.current)
-        if self.item.autocontinue:
+        if self._auto:
             self._advance()
         else:
             self.waiting = True
@@ -220,6 +208,26 @@ class MissionRunner:
             self.waiting = False
             self._advance()
 
+    def _cmd_set_current(self, cmd):
+        # param1: the item (-1: unchanged), param2: 1 resets the jump counters.
+        if not self.missions.ep.allows(cmd.link):
+            return _RESULT_DENIED
+        seq = -1 if cmd.nan(1) else cmd.int(1)
+        reset = not cmd.nan(2) and cmd.int(2) == 1
+        if seq < 0:
+            if not reset:
+                return _RESULT_ACCEPTED
+            seq = self.current
+        return _RESULT_ACCEPTED if self.set_current(seq, reset) else _RESULT_FAILED
+
+    def _cmd_start(self, cmd):
+        # param1: first item, param2: last item (0 as QGroundControl sends it: to the end).
+        if not self.missions.ep.allows(cmd.link):
+            return _RESULT_DENIED
+        first = 0 if cmd.nan(1) else cmd.int(1)
+        last = -1 if cmd.nan(2) else cmd.int(2)
+        return _RESULT_ACCEPTED if self.start(first, last) else _RESULT_FAILED
+
     # --- stepping -------------------------------------------------------------------
     def _advance(self):
         if self.current == self.last:
@@ -229,11 +237,11 @@ class MissionRunner:
 
     def _settle(self, seq):
         """Make seq current, taking DO_JUMPs on the way."""
-        steps = 2 * self.count + 2  # jump chains without a real item in between end here
+        steps = 2 * self.store.count + 2  # jump chains without a real item in between end here
         rec = self._rec
         while steps:
             steps -= 1
-            if seq >= self.count or not self.store.read(seq, rec):
+            if seq >= self.store.count or not self.store.read(seq, rec):
                 self._complete()
                 return
             if rec[28] | rec[29] << 8 != _CMD_DO_JUMP:
@@ -259,13 +267,11 @@ class MissionRunner:
 
     def _load(self, seq):
         self.current = seq
-        self.started_ms = ticks_ms()
-        if self.store.read(seq, self._rec):
-            self.item = self._item.decode(seq, self._rec)
-        else:
-            self.item = None
-        if self.on_item is not None and self.item is not None:
-            self.on_item(self.item)
+        self.started_ms = self.missions.ep.now
+        self._decoded = False
+        self._auto = self._rec[31] if self.store.read(seq, self._rec) else 1
+        if self.on_item is not None:
+            self.on_item(self)
 
     def _jump_slot(self, seq):
         seqs = self._jump_seq

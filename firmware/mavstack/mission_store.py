@@ -40,21 +40,17 @@ class MissionStore:
     """One plan type (0 mission, 1 fence, 2 rally) with room for `capacity` items."""
 
     def __init__(self, storage, name, mission_type, capacity):
-        self.name = name
         self.mission_type = mission_type
         self.capacity = capacity
         self.count = 0  # items in the plan in force
         self.gen = 0  # its generation (0: nothing committed yet)
         self.crc = 0xFFFF  # CRC of its records
         self.corrupt = False  # found corrupt at boot (and wiped)
-        self.jumps = 0  # DO_JUMP items in the plan in force
-        self.staged_jumps = 0  # ... in the staged plan, after seal()
-        self._staged_crc = 0xFFFF
+        self.staged_jumps = 0  # DO_JUMP items in the staged plan, after seal()
+        self._staged_crc = 0xFFFF  # and its CRC (also the scratch of _scan)
         self._staged_count = 0
-        self._scan_crc = 0xFFFF
-        self._scan_jumps = 0
-        self._hdr = bytearray(HEADER_SIZE)
         self._rec = bytearray(RECORD_SIZE)
+        self._hdr = bytearray(HEADER_SIZE)
         self._files = [self._open(storage, name + ".0"), self._open(storage, name + ".1")]
         self._active = 0
         self._load()
@@ -96,12 +92,12 @@ class MissionStore:
         if best >= 0:
             self._active = best
             self.gen = gens[best]
-            self.count, self.crc, self.jumps = info[best]
+            self.count, self.crc = info[best]
         else:
             self.gen = top
 
     def _check(self, f):
-        """(state, generation, (count, crc, jumps)) of one slot file."""
+        """(state, generation, (count, crc)) of one slot file."""
         hdr = self._hdr
         f.seek(0)
         n = f.readinto(hdr)
@@ -122,13 +118,13 @@ class MissionStore:
         want = hdr[12] | hdr[13] << 8
         if count > self.capacity:
             return DAMAGED, gen, None
-        if not self._scan(f, count) or self._scan_crc != want:
+        if not self._scan(f, count) or self._staged_crc != want:
             return DAMAGED, gen, None
-        return VALID, gen, (count, self._scan_crc, self._scan_jumps)
+        return VALID, gen, (count, want)
 
     def _scan(self, f, count):
-        """CRC and DO_JUMP count of a slot's first `count` records (into _scan_crc and
-        _scan_jumps: no tuple on the commit path); False if the file is short."""
+        """CRC and DO_JUMP count of a slot's first `count` records (into _staged_crc and
+        staged_jumps: no tuple on the commit path); False if the file is short."""
         rec = self._rec
         crc = 0xFFFF
         jumps = 0
@@ -139,8 +135,8 @@ class MissionStore:
             crc = crc16(rec, 0, RECORD_SIZE, crc)
             if rec[28] | rec[29] << 8 == _CMD_DO_JUMP:
                 jumps += 1
-        self._scan_crc = crc
-        self._scan_jumps = jumps
+        self._staged_crc = crc
+        self.staged_jumps = jumps
         return True
 
     # --- the plan in force ----------------------------------------------------------
@@ -169,9 +165,9 @@ class MissionStore:
         spare.seek(0)
         spare.write(hdr)
         spare.flush()
+        rec = self._rec
         if keep > self.count:
             keep = self.count
-        rec = self._rec
         src = self._files[self._active]
         for i in range(keep):
             src.seek(HEADER_SIZE + i * RECORD_SIZE)
@@ -189,11 +185,8 @@ class MissionStore:
         """Read the staged plan back: its CRC and DO_JUMP count (staged_jumps); False if short."""
         spare = self._files[1 - self._active]
         spare.flush()
-        ok = self._scan(spare, count)
-        self._staged_crc = self._scan_crc
         self._staged_count = count
-        self.staged_jumps = self._scan_jumps
-        return ok
+        return self._scan(spare, count)
 
     def commit(self):
         """Make the sealed plan the plan in force: one header write."""
@@ -228,7 +221,6 @@ class MissionStore:
         self.gen = gen
         self.count = count
         self.crc = crc
-        self.jumps = self.staged_jumps
         return True
 
     def clear(self):

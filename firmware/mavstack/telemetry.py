@@ -80,8 +80,9 @@ def split_fmt(fmt, base_len):
         size += _SIZES[c] * (int(count) if count else 1)
         count = ""
         if size == base_len:
-            rest = fmt[i + 1:]
-            return fmt[: i + 1], ("<" + rest) if rest else None
+            if i + 1 == len(fmt):
+                return fmt, None
+            return fmt[: i + 1], "<" + fmt[i + 1:]
     raise ValueError("format %r is not %d bytes" % (fmt, base_len))
 
 
@@ -93,11 +94,9 @@ class Slot:
         self.msgid = msgid
         self.size = info >> 16
         self.buf = bytearray(self.size)
-        self.fmt = ep.fmt(msgid)
-        self.base, self.ext = split_fmt(self.fmt, (info >> 8) & 0xFF)
         self.ext_off = (info >> 8) & 0xFF
+        self.base, self.ext = split_fmt(ep.fmt(msgid), self.ext_off)
         self.written = False
-        self.updates = 0
 
     def send(self, link):
         """Producer: send the last value written; False while there is none."""

@@ -22,7 +22,13 @@ class UdpTransport:
 
     The socket is connect()ed to its peer so that reads and writes go through the
     stream calls, which allocate nothing; udpin learns its peer with one recvfrom.
+    MicroPython's readinto fills the whole buffer with as many queued datagrams as
+    fit and cuts short the one that does not (its tail is lost), so a link reads UDP
+    in rx_chunk bytes, far more than a burst of ground-station traffic; a read that
+    fills them is counted in rx_overruns.
     """
+
+    rx_chunk = 4096
 
     def __init__(self, mode, host, port, bytes_per_s=UDP_BYTES_PER_S):
         import socket
@@ -34,6 +40,7 @@ class UdpTransport:
         self.bytes_per_s = bytes_per_s
         self.name = "%s:%s:%d" % (mode, host, port)
         self.peer = None
+        self.rx_overruns = 0
         self._last_rx = ticks_ms()
         self._open()
 
@@ -75,6 +82,8 @@ class UdpTransport:
                 n = 0
             if n is None:
                 n = 0
+            elif n == len(buf) and MICROPYTHON:
+                self.rx_overruns += 1
         now = ticks_ms()
         if n:
             self._last_rx = now

@@ -2,126 +2,129 @@
 
     params_steady.py ENCODING VERSION BYTES_PER_S
 
-Builds an endpoint in-process with the unix board's parameter table and an
-in-memory link, warms up with one full list, then, with the heap locked: a paced
-PARAM_REQUEST_LIST to the end, PARAM_REQUEST_READ by index and by name (a 16-char
-name and a 15-char one), and an unknown index refused without a reply. Prints
-`ok values=N reads=N ms=N` or the error.
+A bench vehicle (status, params, commands) with the unix board's 100 parameters on an
+in-memory link paced as BYTES_PER_S. After a warm-up, with the heap locked: a full
+PARAM_REQUEST_LIST to the end (in index order, nothing else owed), PARAM_REQUEST_READ
+by index and by name (16 and 15 characters), an unknown index (STATUSTEXT, no value),
+accepted PARAM_SETs of a float and an integer, and DO_SET_PARAMETER.
+Prints `ok values=N reads=N sets=N ms=N` or what went wrong.
 """
 import struct
 import sys
 
 import micropython
 
-from mavstack.dialects import common
-from mavstack.encoder import Encoder
-from mavstack.endpoint import Endpoint
-from mavstack.parser import Parser
-from mavstack.services.params import Params
+from harness import Bench
 
 sys.path.append("boards")
 import unix_params  # noqa: E402
 
 
-class LoopTransport:
-    """Frames in from a prebuilt buffer, frames out into a parser; nothing allocated."""
-
-    name = "loop"
-
-    def __init__(self, bytes_per_s, on_frame):
-        self.bytes_per_s = bytes_per_s
-        self.inbox = bytearray(600)
-        self.n_in = 0
-        self.out = Parser(common.CRC_LEN, on_frame)
-
-    def readinto(self, buf):
-        n = self.n_in
-        for i in range(n):
-            buf[i] = self.inbox[i]
-        self.n_in = 0
-        return n
-
-    def write(self, buf, n):
-        self.out.feed(buf, n)
-        return n
-
-    def close(self):
-        pass
+class Board:
+    NAME = "bench"
+    MAV_TYPE = 2
+    MAV_AUTOPILOT = 0
+    GCS_TIMEOUT_MS = 5000
+    OPERATOR_PASSKEY = None
+    PARAMS = unix_params.PARAMS
 
 
 class Ground:
-    """Counts the vehicle's PARAM_VALUEs and checks their index order."""
+    """Counts PARAM_VALUEs and checks that a list arrives in index order."""
 
     def __init__(self):
         self.values = 0
         self.next_index = 0
         self.errors = 0
-        self.last_index = -1
-        self.last_type = 0
 
     def on_frame(self, msgid, p):
         if msgid != 22:
             return
-        index = p[6] | p[7] << 8
-        self.last_index = index
-        self.last_type = p[24]
-        if index == self.next_index:
+        if (p[6] | p[7] << 8) == self.next_index:
             self.next_index += 1
         else:
             self.errors += 1
         self.values += 1
 
 
-def frame(enc, transport, msgid, fmt, *fields):
-    off = enc.begin()
-    enc.clear(255)
-    struct.pack_into(fmt, enc.buf, off, *fields)
-    n = enc.finish(msgid, 255, 190)
-    for i in range(n):
-        transport.inbox[transport.n_in + i] = enc.buf[i]
-    transport.n_in += n
+def int_bits_as_float(v):
+    return struct.unpack("<f", struct.pack("<i", v))[0]
 
 
-def prepare(enc, frames):
-    """Prebuilt request frames (made before the lock): msgid, bytes."""
-    out = []
-    for msgid, fmt, fields in frames:
-        off = enc.begin()
-        enc.clear(255)
-        struct.pack_into(fmt, enc.buf, off, *fields)
-        n = enc.finish(msgid, 255, 190)
-        out.append(bytes(enc.buf[:n]))
-    return out
+def build(encoding, version, rate):
+    b = Bench(services=("status", "params", "commands"), board=Board,
+              options={"param_encoding": encoding}, version=version)
+    b.ep.links[0].bytes_per_s = rate
+    g = b.gcs()
+    frames = {
+        "list": g.frame(21, 1, 1),
+        "reads": [
+            g.frame(20, 7, 1, 1, b""),
+            g.frame(20, -1, 1, 1, b"SIM_GPS_GLITCH_M"),
+            g.frame(20, -1, 0, 0, b"RTL_LOIT_TIME_S"),
+            g.frame(20, 99, 1, 0, b""),
+        ],
+        "unknown": g.frame(20, 100, 1, 1, b""),
+        "sets": [
+            g.frame(23, 7.5, 1, 1, b"SIM_SPEED", 9),
+            g.frame(23, 6.5, 1, 1, b"SIM_SPEED", 9),
+            g.frame(23, 6100.0 if encoding == "c_cast" else int_bits_as_float(6100), 1, 1, b"BATT_CAPACITY", 6),
+            g.frame(23, 6200.0 if encoding == "c_cast" else int_bits_as_float(6200), 1, 1, b"BATT_CAPACITY", 6),
+        ],
+        "commands": [
+            g.command(180, 20.0, 12.0),
+            g.command(180, 20.0, 15.0),
+        ],
+    }
+    return b, frames
 
 
-def inject(transport, data):
-    n = transport.n_in
-    for i in range(len(data)):
-        transport.inbox[n + i] = data[i]
-    transport.n_in = n + len(data)
-
-
-def run_list(ep, transport, ground, request, start, limit):
+def run_list(b, ground, frames, limit, out):
     ground.next_index = 0
-    inject(transport, request)
-    now = start
-    count = ground.values
-    while ground.values - count < 100 and now - start < limit:
-        ep.poll(now)
-        now += 1
-    return now - start
+    before = ground.values
+    b.send(frames["list"])
+    start = b.now
+    n = 0
+    while ground.values - before < 100 and n < limit:
+        b.run(1)
+        n += 1
+    out[0] = ground.values - before
+    out[1] = b.now - start
 
 
-def reads(ep, transport, ground, frames, now):
-    """Each read frame answered with exactly one PARAM_VALUE."""
+def one_each(b, ground, frames):
+    """How many of the frames got exactly one PARAM_VALUE back."""
     ok = 0
-    for data in frames:
+    for f in frames:
         before = ground.values
-        inject(transport, data)
-        ep.poll(now)
+        b.send(f)
+        n = 0
+        while ground.values == before and n < 200:  # paced: may wait for credit
+            b.run(1)
+            n += 1
+        b.run(20)
         if ground.values == before + 1:
             ok += 1
     return ok
+
+
+def quiet(b, ground, f):
+    before = ground.values
+    b.send(f)
+    b.run(3)
+    return ground.values - before
+
+
+def steady(b, ground, frames, out):
+    """Fills out (a list: returning a tuple would allocate)."""
+    run_list(b, ground, frames, 100000, out)
+    out[2] = ground.errors
+    out[3] = one_each(b, ground, frames["reads"])
+    out[4] = quiet(b, ground, frames["unknown"])
+    out[5] = one_each(b, ground, frames["sets"])
+    acks = b.results[0]
+    out[6] = one_each(b, ground, frames["commands"])
+    out[7] = b.results[0] - acks
 
 
 def main():
@@ -129,41 +132,26 @@ def main():
     version = int(sys.argv[2])
     rate = int(sys.argv[3])
     ground = Ground()
-    ep = Endpoint(common, 1, 1)
-    transport = LoopTransport(rate, ground.on_frame)
-    ep.add_link(transport, version)
-    params = ep.add(Params(unix_params.PARAMS, encoding))
-    enc = Encoder(common.CRC_LEN, version)
-    request = prepare(enc, [(21, "<BB", (1, 1))])[0]
-    read_frames = prepare(
-        enc,
-        [
-            (20, "<hBB16s", (7, 1, 1, b"")),
-            (20, "<hBB16s", (-1, 1, 1, b"SIM_GPS_GLITCH_M")),
-            (20, "<hBB16s", (-1, 0, 0, b"RTL_LOIT_TIME_S")),
-            (20, "<hBB16s", (99, 1, 0, b"")),
-        ],
-    )
-    refused = prepare(enc, [(20, "<hBB16s", (100, 1, 1, b""))])
-    # Warm-up: every code path once, so that lazily created state exists.
-    run_list(ep, transport, ground, request, 0, 100000)
-    reads(ep, transport, ground, read_frames, 100000)
-    reads(ep, transport, ground, refused, 100001)
+    b, frames = build(encoding, version, rate)
+    b.watch = ground.on_frame
+    b.run(10)
+    out = [0] * 8
+    steady(b, ground, frames, out)  # warm-up: first-time paths may allocate
     ground.errors = 0
-    before = ground.values
     micropython.heap_lock()
     try:
-        ms = run_list(ep, transport, ground, request, 200000, 100000)
-        listed = ground.values - before
-        errors = ground.errors
-        got = reads(ep, transport, ground, read_frames, 300000)
-        bad = reads(ep, transport, ground, refused, 300001)
+        steady(b, ground, frames, out)
     finally:
         micropython.heap_unlock()
-    if listed != 100 or errors or got != len(read_frames) or bad != 0:
-        print("fail listed=%d errors=%d reads=%d refused_answered=%d" % (listed, errors, got, bad))
+    listed, ms, errors, reads, unknown, sets, commands, accepted = out
+    params = b.ep.services["params"]
+    if (listed, errors, reads, unknown, sets, commands, accepted) != (100, 0, 4, 0, 4, 2, 2):
+        print("fail", out)
         return
-    print("ok values=%d reads=%d ms=%d count=%d" % (listed, got, ms, params.count))
+    if params.get("SIM_SPEED") != 6.5 or params.get("BATT_CAPACITY") != 6200 or params.get("SIM_SPEED") == 0:
+        print("fail values", params.get("SIM_SPEED"), params.get("BATT_CAPACITY"))
+        return
+    print("ok values=%d reads=%d sets=%d commands=%d ms=%d" % (listed, reads, sets, commands, ms))
 
 
 main()

@@ -30,7 +30,7 @@ else:
 
     unlock = lock
 
-FMT = getattr(common, "FMT", None) or {k: v[1] for k, v in common.LAYOUT.items()}
+FMT = common.FMT
 CHUNK = 4096
 
 # What the handlers add up, by index (all small ints).

@@ -21,13 +21,6 @@ STATS = ("frames", "crc_errors", "bytes_discarded", "unknown_ids", "bad_frames",
 CHUNK_MAX = 4096
 
 
-def fmt_table(dialect):
-    fmt = getattr(dialect, "FMT", None)
-    if fmt is None:  # dialects generated before FMT existed
-        fmt = {k: v[1] for k, v in dialect.LAYOUT.items()}
-    return fmt
-
-
 def load_dialect(name):
     if name == "common":
         from mavstack.dialects import common as d
@@ -96,7 +89,7 @@ def encode(dialect, src, out):
     buffer, the way the stack packs messages; OUT gets the frame's hex, or '-' when
     the encoder refuses it.
     """
-    fmt = fmt_table(dialect)
+    fmt = dialect.FMT
     encoders = {1: Encoder(dialect.CRC_LEN, 1), 2: Encoder(dialect.CRC_LEN, 2)}
     for line in src:
         w = line.split()
@@ -135,17 +128,35 @@ def run_kernels(src, out):
             out.write(hexs(a) + "\n")
 
 
+class Lines:
+    """Output collected and written in one go (a write per line is a system call)."""
+
+    def __init__(self, path):
+        self.path = path
+        self.parts = []
+
+    def write(self, s):
+        self.parts.append(s)
+
+    def close(self):
+        with open(self.path, "w") as f:
+            f.write("".join(self.parts))
+
+
 def main(argv):
     cmd = argv[0]
     if cmd == "parse":
-        with open(argv[3], "w") as out:
-            parse(load_dialect(argv[1]), argv[2], out, argv[4:])
+        out = Lines(argv[3])
+        parse(load_dialect(argv[1]), argv[2], out, argv[4:])
     elif cmd == "encode":
-        with open(argv[2]) as src, open(argv[3], "w") as out:
-            encode(load_dialect(argv[1]), src, out)
+        out = Lines(argv[3])
+        with open(argv[2]) as src:  # read whole: MicroPython reads lines a byte at a time
+            encode(load_dialect(argv[1]), src.read().split("\n"), out)
     elif cmd == "kernels":
-        with open(argv[1]) as src, open(argv[2], "w") as out:
-            run_kernels(src, out)
+        out = Lines(argv[2])
+        with open(argv[1]) as src:
+            run_kernels(src.read().split("\n"), out)
+    out.close()
     return kernels.IMPL
 
 

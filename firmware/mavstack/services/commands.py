@@ -15,7 +15,7 @@ describes. Built in here: MAV_CMD_REQUEST_MESSAGE (512) for every producer.
 """
 import struct
 
-from ..compat import const, ticks_ms, ticks_diff
+from ..compat import const, ticks_diff
 from ..fields import u16, i32, f32_is_nan, f32_to_int
 from ..kernels import crc16
 
@@ -178,7 +178,7 @@ class Commands:
         if is_int:
             key = crc16(p, 32, 33, key) | 0x10000  # the frame changes what x, y, z mean
         cmd.key = key
-        now = ticks_ms()
+        now = self.ep.now
         if key == self._last_key and ticks_diff(now, self._last_ms) < _REPEAT_WINDOW_MS:
             self._last_ms = now
             self.ack(link, cmd.command, self._last_result, 0, self._last_param2, cmd.sysid, cmd.compid)

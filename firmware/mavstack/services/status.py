@@ -12,6 +12,8 @@ It also holds the vehicle state other services and the application share:
     status.set_home(lat_e7, lon_e7, alt_mm), status.home_set, status.home
     status.set_sensors(present, enabled, health), status.set_battery(mv, ca, percent)
     status.set_clock(unix_usec), status.statustext(severity, text), status.gcs_present(link)
+    status.reboot(1) (2: shutdown, if the board has shutdown()): Reboot is raised out of
+    a poll reboot_delay_ms later, once the ACK and a STATUSTEXT are on the wire
 Hooks the application may set (None: no opinion):
     arm_check(arm) -> None | reason | (MAV_RESULT, reason)   veto arming or disarming
     mode_check(base_mode, custom_mode) -> same                 veto a mode
@@ -23,7 +25,8 @@ Load (SYS_STATUS.load) is the share of wall time not spent in status.idle(ms), w
 main.py's loop sleeps through; an application running its own loop calls idle(ms),
 or add_idle(us) for time it waited elsewhere. drop_rate_comm and errors_comm come from
 the links' parsers: sequence gaps against frames received (smoothed over ~10 s), and
-frames that failed their CRC or were malformed (a running total).
+frames that failed their CRC or were malformed (a running total). errors_count1 is
+the number of STATUSTEXTs dropped because the queue was full.
 """
 import struct
 
@@ -62,7 +65,6 @@ MODE_TEST = const(2)
 MODE_CUSTOM = const(1)
 
 _ACCEPTED = const(0)
-_TEMPORARILY_REJECTED = const(1)
 _DENIED = const(2)
 
 _MSG_HEARTBEAT = const(0)
@@ -73,7 +75,6 @@ _MSG_CHANGE_OPERATOR_CONTROL = const(5)
 _MSG_SET_MODE = const(11)
 _MSG_AUTOPILOT_VERSION = const(148)
 _MSG_HOME_POSITION = const(242)
-_MSG_STATUSTEXT = const(253)
 _MAV_TYPE_GCS = const(6)
 _CAP_MAVLINK2 = const(8192)
 _MAVLINK_VERSION = const(3)
@@ -87,7 +88,7 @@ _HOME_POSITION_FMT = "<iiifff4f"
 _PERIOD_MS = const(1000)  # HEARTBEAT, and SYS_STATUS when no streams service schedules it
 _TEXT_FRAME = const(66)  # bytes of a MAVLink 2 STATUSTEXT, for pacing on slow links
 _TEXT_SHARE = const(4)  # STATUSTEXT may use a quarter of the slowest link
-_GCS_NEVER = const(0)
+_GCS_NEVER = const(0)  # no GCS heartbeat yet on this link (the tables start zeroed)
 _GCS_PRESENT = const(1)
 _GCS_LOST = const(2)
 

@@ -255,7 +255,7 @@ class Streams:
         else:
             return False
         off = link.begin()
-        struct.pack_into(self._interval_fmt, link.txbuf, off, self.interval(link, msgid), msgid)
+        struct.pack_into(self._interval_fmt, link.txbuf, off, self.interval(link, msgid), msgid & 0xFFFF)
         return link.send(_MSG_MESSAGE_INTERVAL)
 
     def _on_request_data_stream(self, link, p):

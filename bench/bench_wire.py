@@ -1,0 +1,177 @@
+"""Wire layer: frames per second in and out, and bytes allocated per frame.
+
+The traffic is a mix of HEARTBEAT, ATTITUDE, GPS_RAW_INT, PARAM_VALUE,
+MISSION_ITEM_INT and COMMAND_LONG packed by pymavlink (MAVLink 1, and MAVLink 2 with
+its payload tails trimmed). Ingest means fed in 4 KiB chunks, parsed, CRC-checked and
+delivered to a no-op callback. The unix port runs bench/mpy_wire.py with viper and
+with the portable kernels; pymavlink's MAVLink.parse_buffer and our parser on CPython
+run over the same bytes for comparison.
+
+    .venv/bin/python bench/bench_wire.py
+"""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+BENCH = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(BENCH)
+FIRMWARE = os.path.join(ROOT, "firmware")
+MICROPYTHON = os.path.join(ROOT, ".venv", "bin", "micropython")
+FRAMES = 30000
+ENCODE = 30000
+CHUNK = 4096
+REPEATS = 7
+
+
+def pack_stream(version, count):
+    """count frames of the six kinds in turn, values changing, as pymavlink sends them."""
+    if version == 2:
+        from pymavlink.dialects.v20 import common as m
+    else:
+        from pymavlink.dialects.v10 import common as m
+    frames = bytearray()
+
+    class Sink:
+        def write(self, b):
+            frames.extend(b)
+
+    mav = m.MAVLink(Sink(), 1, 1)
+    for i in range(count):
+        k = i % 6
+        if k == 0:
+            mav.heartbeat_send(2, 3, 81, i, 4, 3)
+        elif k == 1:
+            mav.attitude_send(i, 0.01 * i, -0.02, 1.5, 0.001, 0.002, -0.003)
+        elif k == 2:
+            mav.gps_raw_int_send(i * 1000, 3, 473977418 + i, 85455939, 488000, 120, 150, 500, 9000, 12)
+        elif k == 3:
+            mav.param_value_send(b"PARAM_%03d" % (i % 300), 0.5 * i, 9, 300, i % 300)
+        elif k == 4:
+            mav.mission_item_int_send(1, 1, i & 0xFFFF, 3, 16, 0, 1, 0.0, 2.0, 0.0, 0.0,
+                                      473977418, 85455939, 50.0)
+        else:
+            mav.command_long_send(1, 1, 400, 0, 1.0, 0, 0, 0, 0, 0, 0)
+    return bytes(frames)
+
+
+def best_fps(feed, data, frames):
+    """frames / the sum over 4 KiB chunks of each chunk's best time in REPEATS runs.
+
+    feed(new=True) starts a fresh parser; feed(chunk) parses one chunk, returning the
+    frames it finished. Timing chunk by chunk keeps other processes' turns out of it.
+    """
+    n = (len(data) + CHUNK - 1) // CHUNK
+    best = [float("inf")] * n
+    for _ in range(REPEATS):
+        feed(None)
+        got = 0
+        for k in range(n):
+            chunk = data[k * CHUNK:(k + 1) * CHUNK]
+            t0 = time.perf_counter()
+            got += feed(chunk)
+            dt = time.perf_counter() - t0
+            best[k] = min(best[k], dt)
+        assert got == frames, (got, frames)
+    return frames / sum(best)
+
+
+def pymavlink_ingest():
+    from pymavlink.dialects.v20 import common as m
+
+    state = {}
+
+    def feed(chunk):
+        if chunk is None:
+            state["mav"] = m.MAVLink(None, 0, 0)
+            return 0
+        got = state["mav"].parse_buffer(chunk)
+        return len(got) if got else 0
+
+    return feed
+
+
+def cpython_ingest():
+    if FIRMWARE not in sys.path:
+        sys.path.insert(0, FIRMWARE)
+    from mavstack.dialects import common
+    from mavstack.parser import Parser
+
+    def noop(msgid, payload):
+        pass
+
+    state = {}
+    buf = bytearray(CHUNK)
+
+    def feed(chunk):
+        if chunk is None:
+            state["p"] = Parser(common.CRC_LEN, noop)
+            return 0
+        p = state["p"]
+        before = p.frames
+        n = len(chunk)
+        buf[:n] = chunk
+        p.feed(buf, n)
+        return p.frames - before
+
+    return feed
+
+
+def micropython(v1_path, v2_path, portable):
+    env = dict(os.environ)
+    env["MICROPYPATH"] = os.pathsep.join([FIRMWARE, ".frozen"])
+    env.pop("MAVSTACK_PORTABLE", None)
+    if portable:
+        env["MAVSTACK_PORTABLE"] = "1"
+    p = subprocess.run([MICROPYTHON, "-X", "heapsize=32M", os.path.join(BENCH, "mpy_wire.py"),
+                        v1_path, v2_path, str(ENCODE)],
+                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    if p.returncode != 0:
+        raise RuntimeError("mpy_wire.py failed\n" + p.stdout + p.stderr)
+    got = json.loads(p.stdout.strip().split("\n")[-1])
+    assert got.pop("kernels") == ("portable" if portable else "viper")
+    return got
+
+
+def run():
+    os.environ.setdefault("MAVLINK20", "1")
+    v1 = pack_stream(1, FRAMES)
+    v2 = pack_stream(2, FRAMES)
+    with tempfile.TemporaryDirectory() as tmp:
+        v1_path, v2_path = os.path.join(tmp, "v1.bin"), os.path.join(tmp, "v2.bin")
+        with open(v1_path, "wb") as f:
+            f.write(v1)
+        with open(v2_path, "wb") as f:
+            f.write(v2)
+        viper = micropython(v1_path, v2_path, False)
+        portable = micropython(v1_path, v2_path, True)
+    alloc = max(v for k, v in list(viper.items()) + list(portable.items()) if k.endswith("alloc_per_frame"))
+    return {
+        "ingest_v1_fps": viper["ingest_v1_fps"],
+        "ingest_v2_fps": viper["ingest_v2_fps"],
+        "encode_v2_fps": viper["encode_v2_fps"],
+        "alloc_bytes_per_frame": alloc,
+        "pymavlink_ingest_v2_fps": round(best_fps(pymavlink_ingest(), v2, FRAMES)),
+        "ingest_v1_fps_portable": portable["ingest_v1_fps"],
+        "ingest_v2_fps_portable": portable["ingest_v2_fps"],
+        "encode_v2_fps_portable": portable["encode_v2_fps"],
+        "cpython_ingest_v2_fps": round(best_fps(cpython_ingest(), v2, FRAMES)),
+        "wire_v2_bytes_per_frame": round(len(v2) / FRAMES, 1),
+    }
+
+
+def floors(r):
+    return [
+        ("alloc_bytes_per_frame == 0", r["alloc_bytes_per_frame"] == 0),
+        ("ingest_v2_fps >= 60% of pymavlink_ingest_v2_fps",
+         r["ingest_v2_fps"] >= 0.6 * r["pymavlink_ingest_v2_fps"]),
+    ]
+
+
+if __name__ == "__main__":
+    results = run()
+    print(json.dumps(results, indent=1))
+    for text, ok in floors(results):
+        print("%s: %s" % (text, "ok" if ok else "MISSED"))

@@ -1,0 +1,472 @@
+"""Mission protocol rules, in-process on CPython: the missions service on the bench's
+in-memory link and a simulated clock, pymavlink encoding the ground stations' frames
+and decoding the vehicle's. Exact counts and timings are visible here; the same
+behaviour over UDP against the unix vehicle is in test_missions_e2e.py."""
+import math
+import struct
+import types
+
+import pytest
+
+from mission_gcs import Item, plan, same, waypoint
+from mission_rig import MissionBoard, Rig
+
+ACCEPTED, ERROR, UNSUPPORTED_FRAME, UNSUPPORTED, NO_SPACE = 0, 1, 2, 3, 4
+INVALID_PARAM1, INVALID_PARAM2, INVALID_PARAM5_X, INVALID_PARAM6_Y, INVALID_PARAM7 = 6, 7, 10, 11, 12
+INVALID_SEQUENCE, DENIED, OPERATION_CANCELLED = 13, 14, 15
+NAN = float("nan")
+
+
+@pytest.fixture
+def rig(tmp_path):
+    return Rig(tmp_path)
+
+
+def test_upload_download_and_mission_current(rig):
+    items = plan(10, tag=3)
+    assert rig.upload(items) == ACCEPTED
+    rig.run(2)
+    cur = rig.last("MISSION_CURRENT")  # sent on the change, before the 1 Hz beat
+    assert (cur.seq, cur.total) == (0, 10)
+    assert same(rig.download(), items)
+    assert same(rig.download(as_int=False), plan(10, tag=3, form="float"))
+    # Count 0 clears; MISSION_CURRENT then says "no mission".
+    assert rig.upload([]) == ACCEPTED
+    rig.run(2)
+    cur = rig.last("MISSION_CURRENT")
+    assert cur.total == 0xFFFF and cur.mission_state == 1  # MISSION_STATE_NO_MISSION
+    assert rig.download() == []
+
+
+def test_mission_current_once_a_second(rig):
+    rig.take()
+    rig.run(3000)
+    assert 2 <= len(rig.take("MISSION_CURRENT")) <= 4
+
+
+def test_seed_form_over_mavlink1(rig):
+    """A MAVLink 1 ground station that speaks only the seed's messages is asked with
+    MISSION_REQUEST and answered with MISSION_ITEM; coordinates convert exactly."""
+    items = plan(20, tag=1, form="float")
+    rig.take()
+    rig.send("mission_count", 1, 1, 20, 0, v1=True)
+    req = rig.take(["MISSION_REQUEST", "MISSION_REQUEST_INT"])
+    assert [r.get_type() for r in req] == ["MISSION_REQUEST"] and req[0]._raw[0] == 0xFE
+    assert rig.upload(items, v1=True, as_int=False) == ACCEPTED
+    got = rig.download(v1=True, as_int=False)
+    assert same(got, items)
+    # Stored as MISSION_ITEM_INT integers: the float degrees * 1e7, rounded.
+    ints = rig.download()
+    for f, i in zip(items, ints):
+        assert i.x == round(f.x * 1e7) and i.y == round(f.y * 1e7)
+
+
+def test_item_form_follows_the_ground_station(rig):
+    """A MAVLink 2 ground station that answers MISSION_REQUEST_INT with MISSION_ITEM is
+    asked in its terms from then on."""
+    items = plan(3, form="float")
+    rig.take()
+    rig.send("mission_count", 1, 1, 3, 0)
+    assert rig.take("MISSION_REQUEST_INT")[0].seq == 0
+    rig.send("mission_item", *rig.item_args(0, items[0]))
+    req = rig.take(["MISSION_REQUEST", "MISSION_REQUEST_INT"])
+    assert [(r.get_type(), r.seq) for r in req] == [("MISSION_REQUEST", 1)]
+
+
+@pytest.mark.parametrize("change, code", [
+    (dict(frame=1), UNSUPPORTED_FRAME),  # MAV_FRAME_LOCAL_NED: this vehicle flies global frames
+    (dict(frame=2), UNSUPPORTED_FRAME),  # a waypoint in MAV_FRAME_MISSION has no position
+    (dict(command=31000), UNSUPPORTED),  # MAV_CMD_WAYPOINT_USER_1: not declared by the application
+    (dict(command=5001), UNSUPPORTED),  # a fence vertex in the mission
+    (dict(x=900000001), INVALID_PARAM5_X),
+    (dict(x=-900000001), INVALID_PARAM5_X),
+    (dict(y=1800000001), INVALID_PARAM6_Y),
+    (dict(z=NAN), INVALID_PARAM7),
+    (dict(command=177, frame=2, p1=NAN, p2=1.0), INVALID_PARAM1),  # DO_JUMP without a target
+    (dict(command=177, frame=2, p1=9.0, p2=1.0), INVALID_PARAM1),  # ... beyond the plan
+    (dict(command=177, frame=2, p1=0.0, p2=-2.0), INVALID_PARAM2),
+    (dict(command=112, frame=2, p1=NAN), INVALID_PARAM1),  # CONDITION_DELAY needs its delay
+    (dict(command=19, p1=NAN), INVALID_PARAM1),  # LOITER_TIME needs its time
+])
+def test_validation_result_codes(rig, change, code):
+    old = plan(4, tag=7)
+    assert rig.upload(old) == ACCEPTED
+    new = plan(5, tag=8)
+    new[3] = new[3]._replace(**change)
+    assert rig.upload(new) == code
+    assert same(rig.download(), old)  # the stored plan is untouched
+
+
+def test_validation_of_seed_form_coordinates(rig):
+    old = plan(2, tag=1)
+    assert rig.upload(old) == ACCEPTED
+    for x, y, code in ((91.0, 8.0, INVALID_PARAM5_X), (NAN, 8.0, INVALID_PARAM5_X),
+                       (47.0, math.inf, INVALID_PARAM6_Y), (47.0, -180.5, INVALID_PARAM6_Y),
+                       (1e30, 8.0, INVALID_PARAM5_X)):
+        new = [waypoint(0, form="float")._replace(x=x, y=y)]
+        assert rig.upload(new, as_int=False) == code
+    # A command without a position keeps NaN x/y as 0.
+    jump = [waypoint(0, form="float"), Item(2, 177, 0, 1, 0.0, 1.0, 0.0, 0.0, NAN, NAN, 0.0)]
+    assert rig.upload(jump, as_int=False) == ACCEPTED
+    assert rig.download()[1].x == 0
+    assert rig.upload(old) == ACCEPTED
+
+
+def test_declared_commands_are_accepted(tmp_path):
+    class Board(MissionBoard):
+        MISSION_COMMANDS = (31000,)
+
+    r = Rig(tmp_path, board=Board)
+    items = [waypoint(0), Item(2, 31000, 0, 1, 1.0, 2.0, 3.0, 4.0, 0, 0, 0.0)]
+    assert r.upload(items) == ACCEPTED
+    r.missions.allow(31001)
+    assert r.upload([waypoint(0), items[1]._replace(command=31001)]) == ACCEPTED
+
+
+def test_no_space_and_jump_slots(tmp_path):
+    class Board(MissionBoard):
+        MISSION_CAPACITY = 30
+        MISSION_JUMP_SLOTS = 2
+
+    r = Rig(tmp_path, board=Board)
+    old = plan(30)
+    assert r.upload(old) == ACCEPTED
+    r.take()
+    r.send("mission_count", 1, 1, 31, 0)
+    assert r.last("MISSION_ACK").type == NO_SPACE
+    jumps = plan(4) + [Item(2, 177, 0, 1, 0.0, 1.0, 0, 0, 0, 0, 0.0)] * 3
+    assert r.upload(jumps) == NO_SPACE  # three DO_JUMPs, counters for two
+    assert same(r.download(), old)
+
+
+def test_clear_all(rig):
+    assert rig.upload(plan(5)) == ACCEPTED
+    rig.take()
+    rig.send("mission_clear_all", 1, 1, 0)
+    assert rig.last("MISSION_ACK").type == ACCEPTED
+    assert rig.download() == []
+    # 255 clears every plan type.
+    fence = [Item(5, 5001, 0, 1, 3.0, 0, 0, 0, 473977420 + i * 1000, 85455940, 0.0) for i in range(3)]
+    assert rig.upload(plan(2)) == ACCEPTED and rig.upload(fence, mission_type=1) == ACCEPTED
+    rig.send("mission_clear_all", 1, 1, 255)
+    assert rig.last("MISSION_ACK").type == ACCEPTED
+    assert rig.download() == [] and rig.download(mission_type=1) == []
+
+
+def test_fence_and_rally(rig):
+    mission = plan(3)
+    fence = [Item(5, 5001, 0, 1, 4.0, 0, 0, 0, 473977420 + d[0], 85455940 + d[1], 0.0)
+             for d in ((0, 0), (1000, 0), (1000, 1000), (0, 1000))]
+    fence.append(Item(5, 5003, 0, 1, 50.0, 0, 0, 0, 473977420, 85455940, 0.0))
+    rally = [Item(6, 5100, 0, 1, 0, 0, 0, 0, 473977420 + 500, 85455940, 20.0)]
+    assert rig.upload(mission) == ACCEPTED
+    assert rig.upload(fence, mission_type=1) == ACCEPTED
+    assert rig.upload(rally, mission_type=2) == ACCEPTED
+    assert same(rig.download(), mission)
+    assert same(rig.download(mission_type=1), fence)
+    assert same(rig.download(mission_type=2), rally)
+    assert rig.upload([waypoint(0)], mission_type=1) == UNSUPPORTED  # a waypoint is no fence item
+    assert rig.upload([fence[0]], mission_type=2) == UNSUPPORTED
+    rig.take()
+    rig.send("mission_count", 1, 1, 1, 3)  # no such plan type
+    assert rig.last("MISSION_ACK").type == UNSUPPORTED
+    caps = rig.ep.capabilities
+    assert caps & 4 and caps & 16384 and caps & 32768  # MISSION_INT, MISSION_FENCE, MISSION_RALLY
+
+
+def test_fence_and_rally_refused_over_mavlink1(rig):
+    """mission_type is a MAVLink 2 extension: on a link held to MAVLink 1 a fence or
+    rally transfer cannot be answered in kind, so it is refused."""
+    link = rig.ep.links[0]
+    link.negotiate = False
+    link.tx.version = 1
+    fence = [Item(5, 5001, 0, 1, 3.0, 0, 0, 0, 473977420, 85455940, 0.0)]
+    for start in (("mission_count", 1, 1, 1, 1), ("mission_request_list", 1, 1, 2),
+                  ("mission_clear_all", 1, 1, 1)):
+        rig.take()
+        rig.send(*start)
+        ack = rig.last("MISSION_ACK")
+        assert ack is not None and ack.type == UNSUPPORTED
+    assert rig.upload(plan(2), v1=True) == ACCEPTED  # the mission itself is fine
+    assert rig.upload(fence, mission_type=1) == UNSUPPORTED
+
+
+def test_partial_write(rig):
+    items = plan(10, tag=1)
+    assert rig.upload(items) == ACCEPTED
+    rig.take()
+    rig.send("mission_write_partial_list", 1, 1, 3, 5, 0)
+    new = plan(10, tag=2)
+    for seq in (3, 4, 5):
+        req = rig.take("MISSION_REQUEST_INT")
+        assert [r.seq for r in req] == [seq]
+        rig.send("mission_item_int", *rig.item_args(seq, new[seq]))
+    assert rig.last("MISSION_ACK").type == ACCEPTED
+    assert same(rig.download(), items[:3] + new[3:6] + items[6:])
+    # The seed's rule: a start beyond the current list is rejected; the plan stays.
+    for start, end in ((10, 10), (12, 14), (5, 4), (-1, 3)):
+        rig.send("mission_write_partial_list", 1, 1, start, end, 0)
+        assert rig.last("MISSION_ACK").type == INVALID_SEQUENCE
+    # A range running past the end extends the list.
+    rig.send("mission_write_partial_list", 1, 1, 9, 11, 0)
+    for seq in (9, 10, 11):
+        rig.send("mission_item_int", *rig.item_args(seq, new[seq % 10]))
+    assert rig.last("MISSION_ACK").type == ACCEPTED
+    got = rig.download()
+    assert len(got) == 12 and same(got[9:], [new[9], new[0], new[1]])
+    # On an empty list a partial write from 0 starts a new one.
+    assert rig.upload([]) == ACCEPTED
+    rig.send("mission_write_partial_list", 1, 1, 0, 1, 0)
+    for seq in (0, 1):
+        rig.send("mission_item_int", *rig.item_args(seq, new[seq]))
+    assert rig.last("MISSION_ACK").type == ACCEPTED and same(rig.download(), new[:2])
+
+
+def test_partial_read(rig):
+    items = plan(40, tag=4)
+    assert rig.upload(items) == ACCEPTED
+    rig.take()
+    rig.send("mission_request_partial_list", 1, 1, 5, 9, 0, run=100)
+    got = rig.take("MISSION_ITEM_INT")
+    assert [g.seq for g in got] == [5, 6, 7, 8, 9]
+    assert all(g.param1 == 4.0 for g in got)
+    rig.send("mission_request_partial_list", 1, 1, 7, 7, 0, run=50)  # start == end: one item
+    assert [g.seq for g in rig.take("MISSION_ITEM_INT")] == [7]
+    rig.send("mission_request_partial_list", 1, 1, 30, -1, 0, run=200)  # -1: to the end
+    assert [g.seq for g in rig.take("MISSION_ITEM_INT")] == list(range(30, 40))
+    rig.send("mission_request_partial_list", 1, 1, 45, -1, 0)
+    assert rig.last("MISSION_ACK").type == INVALID_SEQUENCE
+
+
+def test_partial_read_is_paced(tmp_path):
+    r = Rig(tmp_path)
+    assert r.upload(plan(100)) == ACCEPTED
+    r.ep.links[0].bytes_per_s = 5760  # a 57600 baud radio: at most half of it for the list
+    r.take()
+    r.send("mission_request_partial_list", 1, 1, 0, -1, 0, run=1)
+    r.run(1000)
+    n = len(r.take("MISSION_ITEM_INT"))
+    assert 40 <= n <= 70  # ~58 a second at 50 bytes a frame
+    r.run(2000)
+    assert n + len(r.take("MISSION_ITEM_INT")) == 100
+
+
+def test_retries_then_cancel(rig):
+    old = plan(3, tag=1)
+    assert rig.upload(old) == ACCEPTED
+    rig.take()
+    rig.send("mission_count", 1, 1, 5, 0)
+    rig.send("mission_item_int", *rig.item_args(0, plan(5)[0]))
+    rig.take()
+    rig.run(260)
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [1]  # re-requested after 250 ms
+    rig.run(1000)
+    assert len(rig.take("MISSION_REQUEST_INT")) == 4  # 5 re-requests in all
+    assert rig.take("MISSION_ACK") == []
+    rig.run(300)
+    acks = rig.take("MISSION_ACK")
+    assert [a.type for a in acks] == [OPERATION_CANCELLED]
+    assert same(rig.download(), old)
+    assert rig.upload(plan(5, tag=2)) == ACCEPTED  # idle again
+
+
+def test_cancel_is_error_for_mavlink1(rig):
+    rig.send("mission_count", 1, 1, 5, 0, v1=True)
+    rig.take()
+    rig.run(2000)
+    assert [a.type for a in rig.take("MISSION_ACK")] == [ERROR]
+
+
+def test_silence_timeout(tmp_path):
+    """With many retries allowed, 5 s of silence from the ground station ends the upload."""
+    r = Rig(tmp_path, options={"mission_retries": "100", "mission_retry_ms": "100"})
+    r.send("mission_count", 1, 1, 5, 0)
+    r.take()
+    r.run(4900)
+    assert r.take("MISSION_ACK") == []
+    r.run(300)
+    assert [a.type for a in r.take("MISSION_ACK")] == [OPERATION_CANCELLED]
+
+
+def test_ground_station_cancels(rig):
+    old = plan(2)
+    assert rig.upload(old) == ACCEPTED
+    rig.send("mission_count", 1, 1, 5, 0)
+    rig.send("mission_ack", 1, 1, OPERATION_CANCELLED, 0)
+    rig.take()
+    rig.run(2000)
+    assert rig.take(["MISSION_REQUEST_INT", "MISSION_ACK"]) == []  # nothing more asked
+    assert same(rig.download(), old)
+
+
+def test_out_of_sequence_items(rig):
+    items = plan(5)
+    rig.send("mission_count", 1, 1, 5, 0)
+    rig.send("mission_item_int", *rig.item_args(0, items[0]))
+    rig.take()
+    rig.send("mission_item_int", *rig.item_args(3, items[3]))  # ahead: ignored, 1 asked again now
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [1]
+    rig.send("mission_item_int", *rig.item_args(0, items[0]))  # a copy of the last one: left to the timer
+    assert rig.take("MISSION_REQUEST_INT") == []
+    for seq in range(1, 5):
+        rig.send("mission_item_int", *rig.item_args(seq, items[seq]))
+    assert rig.last("MISSION_ACK").type == ACCEPTED
+    assert same(rig.download(), items)
+
+
+def test_repeated_count_restarts_at_seq_0(rig):
+    rig.send("mission_count", 1, 1, 5, 0)
+    rig.send("mission_count", 1, 1, 5, 0)  # our request was lost: ask for 0 again
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [0, 0]
+    rig.send("mission_item_int", *rig.item_args(0, waypoint(0)))
+    rig.take()
+    rig.send("mission_count", 1, 1, 5, 0)  # a late copy once items flow: ignored
+    assert rig.take("MISSION_REQUEST_INT") == []
+    rig.send("mission_count", 1, 1, 3, 0)  # a different count: a new upload
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [0]
+    items = plan(3)
+    for seq in range(3):
+        rig.send("mission_item_int", *rig.item_args(seq, items[seq]))
+    assert rig.last("MISSION_ACK").type == ACCEPTED and same(rig.download(), items)
+
+
+def test_repeated_last_item_is_acked_again(rig):
+    items = plan(4)
+    assert rig.upload(items) == ACCEPTED
+    rig.take()
+    rig.send("mission_item_int", *rig.item_args(3, items[3]))  # our ACK was lost
+    assert [a.type for a in rig.take("MISSION_ACK")] == [ACCEPTED]
+    rig.send("mission_item_int", *rig.item_args(3, items[3]), sysid=200)  # not from the uploader
+    assert rig.take("MISSION_ACK") == []
+
+
+def test_one_transfer_at_a_time(rig):
+    """A second ground station (another system id on the same link) is denied while the
+    first one's transfer runs, and that transfer goes on undisturbed."""
+    old = plan(3, tag=1)
+    assert rig.upload(old) == ACCEPTED
+    mine = plan(4, tag=2)
+    rig.send("mission_count", 1, 1, 4, 0)
+    rig.send("mission_item_int", *rig.item_args(0, mine[0]))
+    rig.take()
+    for start in (("mission_count", 1, 1, 2, 0), ("mission_request_list", 1, 1, 0),
+                  ("mission_clear_all", 1, 1, 0), ("mission_write_partial_list", 1, 1, 0, 0, 0),
+                  ("mission_request_int", 1, 1, 0, 0)):
+        rig.send(*start, sysid=200)
+        acks = rig.take("MISSION_ACK")
+        assert [(a.type, a.target_system) for a in acks] == [(DENIED, 200)], start
+    assert rig.take("MISSION_REQUEST_INT") == []
+    for seq in range(1, 4):
+        rig.send("mission_item_int", *rig.item_args(seq, mine[seq]))
+    assert rig.last("MISSION_ACK").type == ACCEPTED
+    assert same(rig.download(sysid=200), mine)  # idle again: anyone may read
+
+
+def test_download_holds_the_lock_until_the_last_item(rig):
+    assert rig.upload(plan(3)) == ACCEPTED
+    rig.send("mission_request_list", 1, 1, 0)
+    rig.send("mission_request_int", 1, 1, 0, 0)
+    rig.take()
+    rig.send("mission_count", 1, 1, 2, 0, sysid=200)
+    assert rig.last("MISSION_ACK").type == DENIED
+    rig.send("mission_request_int", 1, 1, 1, 0)
+    rig.send("mission_request_int", 1, 1, 2, 0)  # the last one: done, no ACK needed
+    rig.take()
+    assert rig.upload(plan(2), sysid=200) == ACCEPTED
+
+
+def test_operator_control(tmp_path):
+    r = Rig(tmp_path, services=("status", "commands", "missions"), options={"passkey": "pw"})
+    old = plan(2)
+    r.take()
+    r.send("mission_count", 1, 1, 2, 0)
+    assert r.last("MISSION_ACK").type == DENIED
+    r.send("mission_clear_all", 1, 1, 0)
+    assert r.last("MISSION_ACK").type == DENIED
+    r.send("mission_write_partial_list", 1, 1, 0, 0, 0)
+    assert r.last("MISSION_ACK").type == DENIED
+    assert r.download() == []  # reading needs no control
+    r.send("change_operator_control", 1, 0, 0, b"pw")
+    assert r.upload(old) == ACCEPTED
+    assert r.upload(plan(1), sysid=200) is not ACCEPTED
+
+
+def test_set_current_and_commands(tmp_path):
+    r = Rig(tmp_path)
+    assert r.upload(plan(6)) == ACCEPTED
+    r.take()
+    r.send("mission_set_current", 1, 1, 4)
+    assert r.last("MISSION_CURRENT").seq == 4
+    r.send("mission_set_current", 1, 1, 9)  # no such item: unchanged
+    assert r.last("MISSION_CURRENT").seq == 4
+    r.send("command_long", 1, 1, 224, 0, 2, 0, 0, 0, 0, 0, 0)  # MAV_CMD_DO_SET_MISSION_CURRENT
+    assert r.last("COMMAND_ACK").result == 0 and r.last("MISSION_CURRENT").seq == 2
+    r.send("command_long", 1, 1, 224, 0, 6, 0, 0, 0, 0, 0, 0)
+    assert r.last("COMMAND_ACK").result == 4  # MAV_RESULT_FAILED
+    r.send("command_long", 1, 1, 300, 0, 1, 3, 0, 0, 0, 0, 0)  # MAV_CMD_MISSION_START 1..3
+    assert r.last("COMMAND_ACK").result == 0
+    cur = r.last("MISSION_CURRENT")
+    assert (cur.seq, cur.mission_state) == (1, 3)  # ACTIVE
+    # The downloaded item flagged current is the one in force.
+    assert [i.current for i in r.download()] == [0, 1, 0, 0, 0, 0]
+
+
+def test_seed_dialect(tmp_path):
+    """On the seed's dialect (no MISSION_ITEM_INT, no extension fields) the same
+    service runs the seed's protocol: MISSION_REQUEST / MISSION_ITEM."""
+    from mavstack.dialects import seed2012
+
+    r = Rig(tmp_path, dialect=seed2012)
+    m = r.missions
+    assert not m.has_int and not m.has_type and not r.ep.capabilities & 4
+    items = plan(5, tag=2, form="float")
+    assert r.upload(items, v1=True, as_int=False) == ACCEPTED
+    assert same(r.download(v1=True, as_int=False), items)
+
+
+def test_plan_ids_where_the_dialect_has_them(tmp_path):
+    """Today's common.xml adds opaque_id to MISSION_COUNT and MISSION_ACK and plan ids to
+    MISSION_CURRENT; the pymavlink release pinned here predates them. With a dialect
+    that has them, the vehicle fills them in."""
+    from mavstack.dialects import common
+
+    crc_len = dict(common.CRC_LEN)
+    fmt = dict(common.FMT)
+    for msgid, n, f in ((44, 9, "<HBBBI"), (47, 8, "<BBBBI"), (42, 18, "<HHBBIII")):
+        crc_len[msgid] = crc_len[msgid] & 0xFFFF | n << 16
+        fmt[msgid] = f
+    dialect = types.SimpleNamespace(CRC_LEN=crc_len, FMT=fmt)
+    r = Rig(tmp_path, dialect=dialect)
+    seen = []
+    r.b.watch = lambda msgid, p: seen.append((msgid, bytes(p[:20])))
+    r.send("mission_count", 1, 1, 1, 0)
+    item = waypoint(0)
+    r.send("mission_item_int", *r.item_args(0, item))
+    store = r.missions.stores[0]
+    plan_id = store.plan_id
+    ack = [p for i, p in seen if i == 47][-1]
+    assert ack[2] == ACCEPTED and struct.unpack_from("<I", ack, 4)[0] == plan_id != 0
+    r.send("mission_request_list", 1, 1, 0)
+    count = [p for i, p in seen if i == 44][-1]
+    assert struct.unpack_from("<HBBBI", count) == (1, 255, 190, 0, plan_id)
+    r.run(1000)
+    cur = [p for i, p in seen if i == 42][-1]
+    ids = struct.unpack_from("<III", cur, 6)
+    assert ids == (plan_id, r.missions.stores[1].plan_id, r.missions.stores[2].plan_id)
+    # A new plan, a new id.
+    r.send("mission_count", 1, 1, 1, 0)
+    r.send("mission_item_int", *r.item_args(0, item))
+    assert store.plan_id != plan_id
+
+
+def test_storage_survives_a_restart(tmp_path):
+    r = Rig(tmp_path)
+    items = plan(7, tag=5)
+    assert r.upload(items) == ACCEPTED
+    fence = [Item(5, 5003, 0, 1, 30.0, 0, 0, 0, 473977420, 85455940, 0.0)]
+    assert r.upload(fence, mission_type=1) == ACCEPTED
+    for s in r.missions.stores:
+        s.close()
+    r2 = Rig(tmp_path)
+    assert same(r2.download(), items) and same(r2.download(mission_type=1), fence)
+    assert r2.download(mission_type=2) == []
