@@ -99,6 +99,11 @@ def run():
     }
 
 
+def floors(results):
+    ratio = results["param_list_s_57600"] / results["param_list_bound_s_57600"]
+    return [("param list at 57600 baud within 2.5x its line-rate bound (%.2fx)" % ratio, ratio <= 2.5)]
+
+
 if __name__ == "__main__":
     sys.path.insert(0, ROOT)
     print(json.dumps(run(), indent=1))

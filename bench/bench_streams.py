@@ -26,7 +26,8 @@ SECONDS = 6.0
 
 def sched_tick_us():
     env = dict(os.environ)
-    env["MICROPYPATH"] = os.pathsep.join([os.path.join(ROOT, "tests", "mpy"), os.path.join(ROOT, "firmware"), ".frozen"])
+    env["MICROPYPATH"] = os.pathsep.join(
+        [os.path.join(ROOT, "tests", "mpy"), os.path.join(ROOT, "firmware"), ".frozen"])
     runs = []
     for _ in range(3):
         out = subprocess.run([MICROPYTHON, STEADY, "2", "200000", "10000", "1", "bench"], cwd=ROOT, env=env,

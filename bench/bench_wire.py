@@ -20,10 +20,10 @@ BENCH = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(BENCH)
 FIRMWARE = os.path.join(ROOT, "firmware")
 MICROPYTHON = os.path.join(ROOT, ".venv", "bin", "micropython")
-FRAMES = 30000
-ENCODE = 30000
+FRAMES = 20000
+ENCODE = 20000
 CHUNK = 4096
-REPEATS = 7
+REPEATS = 5
 
 
 def pack_stream(version, count):

@@ -22,7 +22,7 @@ from mavstack.parser import Parser
 
 CHUNK = 4096
 BATCH = 100  # frames encoded per timing
-REPEATS = 7
+REPEATS = 9
 
 
 def noop(msgid, payload):

@@ -49,7 +49,7 @@ def run_one(name):
         floors = mod.floors(results) if hasattr(mod, "floors") else []
     except Exception:
         return {}, [], traceback.format_exc()
-    print("  %s: %.1f s" % (name, time.time() - start), file=sys.stderr)
+    print("  %s: %.1f s" % (name, time.time() - start), flush=True)
     return results, floors, None
 
 
@@ -61,7 +61,7 @@ def main(argv):
             merged = json.load(f)
     rows, failed, missed = [], [], []
     for name in names:
-        print("bench %s ..." % name, file=sys.stderr)
+        print("bench %s ..." % name, flush=True)
         results, floors, error = run_one(name)
         if error:
             print("bench %s FAILED\n%s" % (name, error), file=sys.stderr)

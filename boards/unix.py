@@ -70,6 +70,3 @@ MISSION_RETRY_MS = 250  # re-request a missing item after this (--set mission_re
 MISSION_RETRIES = 5  # then give up with MISSION_ACK OPERATION_CANCELLED
 MISSION_TIMEOUT_MS = 5000  # ... or after this much silence
 MISSION_JUMP_SLOTS = 16  # DO_JUMP items a mission may hold (one repeat counter each)
-SIM_SPEED = 10.0  # m/s the simulator flies waypoints at (--set sim_speed=N)
-SIM_CLIMB = 3.0  # m/s up and down
-SIM_ACCEPT_RADIUS = 2.0  # metres, when a NAV_WAYPOINT's param2 gives none

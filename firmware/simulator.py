@@ -255,21 +255,21 @@ class MissionPilot:
     """Flies the mission for the simulator: the current item from the mission runner,
     carried out with a kinematic model (horizontal speed, climb rate, turn rate).
 
-    Speed: --set sim_speed=M/S (board SIM_SPEED), climb SIM_CLIMB; a NAV_WAYPOINT is
-    reached within its param2 (SIM_ACCEPT_RADIUS when 0) and held for param1 seconds.
+    Speeds and the default acceptance radius are the parameters WP_SPEED, WP_SPEED_UP,
+    WP_SPEED_DN, WP_ACCEPT_RAD and SIM_YAW_RATE, read at each new item;
+    `--set sim_speed=M/S` (and sim_climb) override them, beyond their ranges, for
+    tests that fly a whole mission in a second. A NAV_WAYPOINT is reached within its
+    param2 (WP_ACCEPT_RAD when 0) and held there for param1 seconds.
     """
 
     def __init__(self, sim):
         self.sim = sim
         ep = sim.ep
-        board = getattr(ep, "board", None)
-        options = getattr(ep, "options", None) or {}
-        self.speed = float(options.get("sim_speed", getattr(board, "SIM_SPEED", 10.0)))
-        self.climb = float(options.get("sim_climb", getattr(board, "SIM_CLIMB", 3.0)))
-        self.radius = float(options.get("sim_accept_radius", getattr(board, "SIM_ACCEPT_RADIUS", 2.0)))
-        self.turn_rate = 90.0  # deg/s
+        self.options = getattr(ep, "options", None) or {}
+        self.params = ep.services.get("params")
         self.missions = ep.services.get("missions")
         self.status = ep.services.get("status")
+        self._settings()
         self._seq = -1
         self._started = None
         self._arrived = 0.0  # seconds spent at the item's position
@@ -294,8 +294,26 @@ class MissionPilot:
             self._started = runner.started_ms
             self._arrived = 0.0
             self._yaw_target = None
+            self._settings()
         if self._do(item, dt):
             runner.reached()
+
+    def _settings(self):
+        def setting(option, param, default):
+            if option in self.options:
+                return float(self.options[option])
+            if self.params is not None:
+                try:
+                    return float(self.params.get(param))
+                except (KeyError, ValueError):
+                    pass
+            return default
+
+        self.speed = setting("sim_speed", "WP_SPEED", 5.0)
+        self.climb = setting("sim_climb", "WP_SPEED_UP", 2.5)
+        self.sink = setting("sim_climb", "WP_SPEED_DN", 1.5)
+        self.radius = setting("sim_accept_radius", "WP_ACCEPT_RAD", 2.0)
+        self.turn_rate = setting("sim_yaw_rate", "SIM_YAW_RATE", 90.0)
 
     # --- one item -----------------------------------------------------------------
     def _do(self, item, dt):
@@ -394,7 +412,7 @@ class MissionPilot:
             self._hold()
             return True
         step = min(self.speed * dt, dist)
-        vstep = min((climb or self.climb) * dt, abs(du))
+        vstep = min((climb or (self.climb if du > 0 else self.sink)) * dt, abs(du))
         mn = dn / dist * step if dist > 0 else 0.0
         me = de / dist * step if dist > 0 else 0.0
         md = -vstep if du > 0 else vstep

@@ -88,9 +88,6 @@ class Vehicle:
                                        source_component=source_component,
                                        dialect="common")
         if version == 1:
-            m.mav.WIRE_PROTOCOL_VERSION = "1.0"
-            m.WIRE_PROTOCOL_VERSION = "1.0"
-            m.mavlink20 = lambda: False
             # pymavlink packs by its module's protocol version: force MAVLink 1 on every send.
             send = m.mav.send
             m.mav.send = lambda msg, force_mavlink1=False: send(msg, force_mavlink1=True)

@@ -74,11 +74,17 @@ class MissionClient:
                 return None
             if getattr(msg, "mission_type", 0) != mission_type and msg.get_type() != "MISSION_ACK":
                 continue
-            if msg.get_type() == "MISSION_ACK" and msg.mission_type not in (mission_type, 255):
+            if msg.get_type() == "MISSION_ACK" and getattr(msg, "mission_type", 0) not in (mission_type, 255):
                 continue
             if hasattr(msg, "target_system") and msg.target_system not in (0, self.m.mav.srcSystem):
                 continue
             return msg
+
+    def _send(self, name, *args):
+        """pymavlink's NAME_send; a MAVLink 1 encoder has no extension arguments."""
+        f = getattr(self.m.mav, name + "_send")
+        names = f.__code__.co_varnames[1:f.__code__.co_argcount]
+        f(*args[:len([n for n in names if n != "force_mavlink1"])])
 
     def drain(self, seconds=0.0):
         """Forget whatever is queued (late copies from a lossy link)."""
@@ -91,14 +97,14 @@ class MissionClient:
     def send_item(self, seq, item, mission_type=0, as_int=None):
         if as_int is None:
             as_int = self.form == "int"
-        f = self.m.mav.mission_item_int_send if as_int else self.m.mav.mission_item_send
         x, y = item.x, item.y
         if as_int and isinstance(x, float):
             x, y = round(x * 1e7), round(y * 1e7)
         elif not as_int and isinstance(x, int):
             x, y = x / 1e7, y / 1e7
-        f(self.ts, self.tc, seq, item.frame, item.command, item.current, item.autocontinue,
-          item.p1, item.p2, item.p3, item.p4, x, y, item.z, mission_type)
+        self._send("mission_item_int" if as_int else "mission_item", self.ts, self.tc, seq, item.frame,
+                   item.command, item.current, item.autocontinue, item.p1, item.p2, item.p3, item.p4,
+                   x, y, item.z, mission_type)
 
     def upload(self, items, mission_type=0, start=None, end=None):
         """Full upload (MISSION_COUNT), or a partial one (MISSION_WRITE_PARTIAL_LIST start..end,
@@ -108,21 +114,21 @@ class MissionClient:
 
         def begin():
             if partial:
-                m.mav.mission_write_partial_list_send(self.ts, self.tc, start, end, mission_type)
+                self._send("mission_write_partial_list", self.ts, self.tc, start, end, mission_type)
             else:
-                m.mav.mission_count_send(self.ts, self.tc, len(items), mission_type)
+                self._send("mission_count", self.ts, self.tc, len(items), mission_type)
 
         first = start if partial else 0
         last = end if partial else len(items) - 1
         begin()
         requested = False
-        sent_last = False
+        sent_last = last < first  # nothing to send: count 0 clears
         misses = 0
         while misses <= self.retries:
             msg = self._recv(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"], self.timeout, mission_type)
             if msg is None:
                 misses += 1
-                if sent_last:
+                if sent_last and items:
                     self.send_item(last, items[last - first], mission_type)  # our last item or its ACK got lost
                 elif not requested:
                     begin()
@@ -142,7 +148,7 @@ class MissionClient:
 
     def count(self, mission_type=0):
         for _ in range(self.retries + 1):
-            self.m.mav.mission_request_list_send(self.ts, self.tc, mission_type)
+            self._send("mission_request_list", self.ts, self.tc, mission_type)
             msg = self._recv(["MISSION_COUNT", "MISSION_ACK"], self.timeout, mission_type)
             if msg is not None:
                 return msg if msg.get_type() == "MISSION_COUNT" else msg
@@ -157,10 +163,8 @@ class MissionClient:
         want = "MISSION_ITEM_INT" if as_int else "MISSION_ITEM"
         for seq in range(c.count):
             for _ in range(self.retries + 1):
-                if as_int:
-                    self.m.mav.mission_request_int_send(self.ts, self.tc, seq, mission_type)
-                else:
-                    self.m.mav.mission_request_send(self.ts, self.tc, seq, mission_type)
+                self._send("mission_request_int" if as_int else "mission_request", self.ts, self.tc, seq,
+                           mission_type)
                 msg = self._recv_item(want, seq, mission_type)
                 if msg is not None:
                     break
@@ -169,7 +173,7 @@ class MissionClient:
             items.append(Item(msg.frame, msg.command, msg.current, msg.autocontinue, msg.param1, msg.param2,
                               msg.param3, msg.param4, msg.x, msg.y, msg.z))
         if ack:
-            self.m.mav.mission_ack_send(self.ts, self.tc, 0, mission_type)
+            self._send("mission_ack", self.ts, self.tc, 0, mission_type)
         return items
 
     def _recv_item(self, want, seq, mission_type):
@@ -181,7 +185,7 @@ class MissionClient:
 
     def clear(self, mission_type=0):
         for _ in range(self.retries + 1):
-            self.m.mav.mission_clear_all_send(self.ts, self.tc, mission_type)
+            self._send("mission_clear_all", self.ts, self.tc, mission_type)
             msg = self._recv(["MISSION_ACK"], self.timeout, mission_type)
             if msg is not None:
                 return msg.type
@@ -263,3 +267,16 @@ class LossyRelay:
         self._thread.join(2)
         self.gcs_sock.close()
         self.veh_sock.close()
+
+
+def mavlink1(m):
+    """Make a pymavlink connection a MAVLink 1 ground station of the seed's era: frames
+    in MAVLink 1, encoded from definitions without extension fields (pymavlink's v2
+    module forced to MAVLink 1 would still append them)."""
+    from pymavlink.dialects.v10 import common as v10
+
+    mav = v10.MAVLink(m, srcSystem=m.mav.srcSystem, srcComponent=m.mav.srcComponent)
+    mav.robust_parsing = m.mav.robust_parsing
+    m.mav = mav
+    m.WIRE_PROTOCOL_VERSION = "1.0"
+    return m

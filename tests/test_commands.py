@@ -180,6 +180,50 @@ def test_reboot_acks_first_then_comes_back_with_params(vehicle):
     assert p is not None and p.param_value == 7.5
 
 
+def _until(fn, timeout=10.0):
+    deadline = time.time() + timeout
+    while True:
+        try:
+            value = fn()
+            if value:
+                return value
+        except Exception:
+            if time.time() > deadline:
+                raise
+        if time.time() > deadline:
+            return value
+        time.sleep(0.2)
+
+
+def test_mavsdk_reads_version_arms_disarms_and_reboots(vehicle):
+    mavsdk = pytest.importorskip("mavsdk")
+    from mavsdk.plugins.action import Action
+    from mavsdk.plugins.info import Info
+    from mavsdk.plugins.telemetry import Telemetry
+
+    v = start(vehicle)
+    sdk = mavsdk.Mavsdk(mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION))
+    try:
+        sdk.add_any_connection("udpout://127.0.0.1:%d" % v.port)
+        system = sdk.first_autopilot(20.0)
+        assert system is not None, "MAVSDK found no autopilot"
+        version = _until(Info(system).get_version)  # AUTOPILOT_VERSION, asked for with REQUEST_MESSAGE
+        assert (version.flight_sw_major, version.flight_sw_minor, version.flight_sw_patch) == (0, 1, 0)
+        assert version.os_sw_major == 1
+        action, telemetry = Action(system), Telemetry(system)
+        action.arm()
+        assert _until(telemetry.armed)
+        action.disarm()
+        assert _until(lambda: not telemetry.armed())
+        action.reboot()  # raises unless ACCEPTED
+        time.sleep(1.0)
+        action.arm()  # the vehicle came back and answers
+        assert _until(telemetry.armed)
+    finally:
+        sdk.destroy()
+    assert v.proc.poll() is None
+
+
 # --- in-process, on the bench ------------------------------------------------------
 
 def bench(**kw):

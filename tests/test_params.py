@@ -16,21 +16,7 @@ N = len(NAMES)
 
 
 def connect(v, version=2, **kw):
-    """v.gcs(), made to speak only MAVLink 1 from its first frame when version is 1."""
-    if version == 2:
-        return v.gcs(**kw)
-    m = v.gcs(wait=False, **kw)
-    send = m.mav.send
-    m.mav.send = lambda msg, force_mavlink1=False: send(msg, force_mavlink1=True)
-    deadline = time.time() + 20
-    while time.time() < deadline:
-        m.mav.heartbeat_send(6, 8, 0, 0, 0)
-        hb = m.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5)
-        if hb is not None:
-            m.target_system, m.target_component = hb.get_srcSystem(), hb.get_srcComponent()
-            return m
-        v.check_alive()
-    raise AssertionError("no HEARTBEAT from the vehicle")
+    return v.gcs(version=version, **kw)
 
 
 def fetch_all(m, timeout=10):
@@ -230,3 +216,10 @@ def test_operator_control_gates_changes(vehicle):
     assert set_param(boss, "WP_SPEED", 9.5, 9).param_value == 9.5
     msg = recv(other, "PARAM_VALUE", 5, lambda m: m.param_id == "WP_SPEED" and m.param_value == 9.5)
     assert msg is not None  # the change reaches the other ground station too
+
+
+def test_sys_id_parameter_mirrors_the_system_id(vehicle):
+    m = vehicle(args=["--sysid", "7"]).gcs()
+    assert m.target_system == 7
+    msg = read(m, b"MAV_SYS_ID")
+    assert msg.get_srcSystem() == 7 and raw_value(msg) == struct.pack("<i", 7)

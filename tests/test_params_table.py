@@ -550,6 +550,33 @@ def test_corrupt_file_means_defaults_and_next_save_works(tmp_path, damage):
     assert Rig(tmp_path).params.get("SIM_SPEED") == 11.0
 
 
+def test_mangled_files_never_raise():
+    import random
+
+    table = P.Params(MIXED)
+    good = table.pack()
+    rng = random.Random(7)
+    for _ in range(500):
+        data = bytearray(good)
+        for _ in range(rng.randint(1, 4)):
+            kind = rng.random()
+            if not data:
+                break
+            if kind < 0.4:
+                data[rng.randrange(len(data))] = rng.randrange(256)
+            elif kind < 0.7:
+                del data[rng.randrange(len(data)):]
+            else:
+                data.insert(rng.randrange(len(data) + 1), rng.randrange(256))
+        # A record rewritten with its crc fixed: only the checks behind the crc stop it.
+        if rng.random() < 0.5 and len(data) > 10:
+            struct.pack_into("<H", data, len(data) - 2, crc16(data, 0, len(data) - 2, 0xFFFF))
+        values, bad = table.unpack(bytes(data))
+        if values is not None:
+            for i in range(table.count):
+                assert table.valid(i, values, 4 * i)
+
+
 def test_leftover_new_file_never_replaces_the_good_one(tmp_path):
     b = Rig(tmp_path)
     b.set("SIM_SPEED", 9.5, P.REAL32)

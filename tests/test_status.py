@@ -56,11 +56,13 @@ def test_life_cycle_boot_standby_active(vehicle, tmp_path):
         first = recv(m, "HEARTBEAT", 20)
         assert first is not None
         assert first.system_status == MAV_STATE_BOOT
+        assert first.get_msgbuf()[0] == 0xFE  # MAVLink 1 until the ground station speaks MAVLink 2
         m.target_system, m.target_component = first.get_srcSystem(), 1
         assert vehicle_heartbeat(m, lambda h: h.system_status == MAV_STATE_STANDBY) is not None
         assert run(m, 400, 1) == MAV_RESULT_ACCEPTED
         hb = vehicle_heartbeat(m, lambda h: h.base_mode & ARMED)
         assert hb.system_status == MAV_STATE_ACTIVE
+        assert hb.get_msgbuf()[0] == 0xFD
         assert run(m, 400, 0) == MAV_RESULT_ACCEPTED
         hb = vehicle_heartbeat(m, lambda h: not h.base_mode & ARMED)
         assert hb.system_status == MAV_STATE_STANDBY
@@ -203,7 +205,6 @@ def test_mavlink2_ground_station_switches_the_link_to_mavlink2(vehicle):
     time.sleep(0.2)
     m.recv_match(blocking=False)
     assert _frames_versions(m, 2.0) == {0xFD}
-    # A message id over 255 exists only in MAVLink 2 (here: a command's answer path still works).
     assert run(m, 512, 148) == MAV_RESULT_ACCEPTED
 
 

@@ -5,6 +5,8 @@ loop, the simulator and the host's scheduler are all in the measurement.
 """
 import time
 
+import pytest
+
 from conftest import free_udp_port, recv
 from gcs_tools import run, command, MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED
 
@@ -248,6 +250,28 @@ def test_simulated_vehicle_fills_every_slot_and_flies(vehicle):
 
 
 def approx_g():
-    import pytest
-
     return pytest.approx(-9.81, abs=0.05)
+
+
+def test_mavsdk_sets_rates_and_reads_telemetry(vehicle):
+    mavsdk = pytest.importorskip("mavsdk")
+    from mavsdk.plugins.telemetry import Telemetry
+
+    v = vehicle()
+    sdk = mavsdk.Mavsdk(mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION))
+    try:
+        sdk.add_any_connection("udpout://127.0.0.1:%d" % v.port)
+        system = sdk.first_autopilot(20.0)
+        assert system is not None, "MAVSDK found no autopilot"
+        tel = Telemetry(system)
+        tel.set_rate_position(20.0)  # SET_MESSAGE_INTERVAL for GLOBAL_POSITION_INT; raises unless ACCEPTED
+        stamps = []
+        fixes = []
+        tel.subscribe_position(lambda p, _: (stamps.append(time.time()), fixes.append(p)))
+        time.sleep(3.0)
+        gps = tel.gps_info()
+    finally:
+        sdk.destroy()
+    assert abs(rate(stamps[len(stamps) // 3:]) - 20) <= 2  # after MAVSDK settled on the new rate
+    assert abs(fixes[-1].latitude_deg - 47.397742) < 0.001 and abs(fixes[-1].longitude_deg - 8.545594) < 0.001
+    assert gps.num_satellites == 12 and gps.fix_type >= 3  # FixType.FIX_3D

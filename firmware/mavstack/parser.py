@@ -10,7 +10,7 @@ incompat flags) is not thrown away whole: its bytes after the start marker are
 scanned again, so a valid frame that begins inside rejected bytes is still found.
 """
 from .compat import const
-from .kernels import crc16, find_stx, copy, zero, crc_accumulate
+from .kernels import crc16, find_stx, copy, zero
 
 STX_V1 = const(0xFE)
 STX_V2 = const(0xFD)
@@ -83,29 +83,31 @@ class Parser:
                 return end
             stx = src[p]
             buf[0] = stx
-            self._cnt = 1
+            cnt = 1
+            pos = p + 1
             self._want = HEADER_V2 if stx == STX_V2 else HEADER_V1
             self._have_header = False
             self._rstart = p if replaying else -1
-            return p + 1
-        k = self._want - cnt
-        if k > end - pos:
-            k = end - pos
-        copy(buf, src, cnt | pos << 10, k)
-        cnt += k
-        pos += k
-        self._cnt = cnt
-        if cnt < self._want:
-            return pos
-        if not self._have_header:
-            if self._header():
-                self._have_header = True
+        # Header, then the rest: a frame already all in src takes one call.
+        while True:
+            k = self._want - cnt
+            if k > end - pos:
+                k = end - pos
+            copy(buf, src, cnt | pos << 10, k)
+            cnt += k
+            pos += k
+            self._cnt = cnt
+            if cnt < self._want:
                 return pos
-        elif self._check():
-            self._cnt = 0
-            self._deliver()
-            return pos
-        return self._reject(pos, replaying)
+            if not self._have_header:
+                if self._header():
+                    self._have_header = True
+                    continue
+            elif self._check():
+                self._cnt = 0
+                self._deliver()
+                return pos
+            return self._reject(pos, replaying)
 
     def _header(self):
         buf = self.buf
@@ -143,9 +145,12 @@ class Parser:
     def _check(self):
         buf = self.buf
         end = (HEADER_V2 if buf[0] == STX_V2 else HEADER_V1) + self._plen
-        crc = crc16(buf, 1, end, 0xFFFF)
-        crc = crc_accumulate(crc, self._info & 0xFF)
-        if crc != buf[end] | buf[end + 1] << 8:
+        # CRC_EXTRA goes where the CRC's first byte was, so one kernel call covers it.
+        wire = buf[end] | buf[end + 1] << 8
+        buf[end] = self._info & 0xFF
+        crc = crc16(buf, 1, end + 1, 0xFFFF)
+        buf[end] = wire & 0xFF
+        if crc != wire:
             self.crc_errors += 1
             return False
         return True

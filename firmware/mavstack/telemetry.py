@@ -259,7 +259,8 @@ class Telemetry:
     def raw_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag):
         """RAW_IMU: the sensors' raw counts."""
         s = self._raw_imu
-        struct.pack_into(s.base, s.buf, 0, self.uptime_ms * 1000, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag)
+        struct.pack_into(s.base, s.buf, 0, self.uptime_ms * 1000, xacc, yacc, zacc, xgyro, ygyro, zgyro,
+                         xmag, ymag, zmag)
         s.written = True
 
     def raw_pressure(self, press_abs, press_diff1, press_diff2, temperature):

@@ -1,0 +1,145 @@
+"""Real ground stations move missions to and from the unix vehicle: MAVProxy's `wp load`
+and `wp list` with a QGC WPL 110 file, typed on its stdin; MAVSDK's MissionRaw upload
+and download (mission, geofence, rally). A pymavlink ground station on a second link
+checks what the vehicle holds afterwards."""
+import os
+import queue
+import re
+import subprocess
+import threading
+import time
+
+import pytest
+
+from conftest import PYTHON, ROOT, free_udp_port
+from mission_gcs import MissionClient
+
+MAVPROXY = os.path.join(ROOT, ".venv", "bin", "mavproxy.py")
+
+# index current frame command p1 p2 p3 p4 x y z autocontinue
+WPL = """QGC WPL 110
+0\t1\t0\t16\t0\t0\t0\t0\t47.3977420\t8.5455940\t488.000000\t1
+1\t0\t3\t22\t0\t0\t0\t0\t0.0000000\t0.0000000\t20.000000\t1
+2\t0\t3\t16\t0\t2\t0\t0\t47.3987420\t8.5455940\t20.000000\t1
+3\t0\t3\t16\t1.5\t3\t0\t90\t47.3987420\t8.5475940\t30.000000\t1
+4\t0\t2\t177\t2\t1\t0\t0\t0.0000000\t0.0000000\t0.000000\t1
+5\t0\t2\t112\t4\t0\t0\t0\t0.0000000\t0.0000000\t0.000000\t1
+6\t0\t3\t16\t0\t2\t0\t0\t47.3967420\t8.5445940\t25.000000\t1
+7\t0\t3\t21\t0\t0\t0\t0\t47.3977420\t8.5455940\t0.000000\t1
+"""
+
+
+def _wpl_rows():
+    rows = []
+    for line in WPL.splitlines()[1:]:
+        f = line.split("\t")
+        rows.append((int(f[2]), int(f[3]), [float(v) for v in f[4:8]], float(f[8]), float(f[9]), float(f[10])))
+    return rows
+
+
+def two_links(vehicle):
+    ports = free_udp_port(), free_udp_port()
+    v = vehicle(links=["udpin:127.0.0.1:%d" % p for p in ports])
+    return v, ports[0], MissionClient(v.gcs(port=ports[1]))
+
+
+class MavProxy:
+    """MAVProxy as a user runs it, typing commands; its output read line by line."""
+
+    def __init__(self, port, tmp_path):
+        cmd = [PYTHON, MAVPROXY, "--master=udpout:127.0.0.1:%d" % port, "--default-modules=wp",
+               "--state-basedir=%s" % tmp_path, "--no-state"]
+        self.proc = subprocess.Popen(cmd, cwd=str(tmp_path), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT, text=True)
+        self.lines = queue.Queue()
+        self.seen = []
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.proc.stdout:
+            self.lines.put(line)
+
+    def say(self, line):
+        self.proc.stdin.write(line + "\n")
+        self.proc.stdin.flush()
+
+    def expect(self, pattern, timeout=20):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            try:
+                line = self.lines.get(timeout=0.2)
+            except queue.Empty:
+                continue
+            self.seen.append(line)
+            found = re.search(pattern, line)
+            if found:
+                return found
+        raise AssertionError("MAVProxy never printed %r:\n%s" % (pattern, "".join(self.seen)))
+
+    def close(self):
+        try:
+            self.proc.stdin.close()  # end of input: MAVProxy stops
+            self.proc.wait(10)
+        except (OSError, subprocess.TimeoutExpired):
+            self.proc.kill()
+            self.proc.wait()
+
+
+def test_mavproxy_wp_load_and_list(vehicle, tmp_path):
+    v, port, check = two_links(vehicle)
+    (tmp_path / "mission.txt").write_text(WPL)
+    mp = MavProxy(port, tmp_path)
+    try:
+        mp.expect(r"online system 1|Detected vehicle 1:1")
+        mp.say("wp load mission.txt")
+        mp.expect(r"Loaded 8 waypoints? from mission.txt")
+        mp.expect(r"Sent all 8 waypoints?")
+        held = check.download()
+        assert held is not None and len(held) == 8
+        for item, (frame, command, params, x, y, z) in zip(held, _wpl_rows()):
+            assert (item.frame, item.command) == (frame, command)
+            assert [round(p, 3) for p in (item.p1, item.p2, item.p3, item.p4)] == params
+            assert (item.x, item.y) == (round(x * 1e7), round(y * 1e7))
+            assert abs(item.z - z) < 1e-4
+        mp.say("wp list")
+        mp.expect(r"Requesting 8 waypoints")
+        listed = [mp.expect(r"^(\d+) (\d+) (-?[\d.]+) (-?[\d.]+) (-?[\d.]+) p1=") for _ in range(8)]
+        for found, (frame, command, params, x, y, z) in zip(listed, _wpl_rows()):
+            assert (int(found.group(1)), int(found.group(2))) == (command, frame)
+            assert abs(float(found.group(3)) - x) < 1e-7 and abs(float(found.group(4)) - y) < 1e-7
+    finally:
+        mp.close()
+
+
+def test_mavsdk_mission_raw(vehicle):
+    mavsdk = pytest.importorskip("mavsdk")
+    from mavsdk.plugins.mission_raw import MissionItem, MissionRaw
+
+    v, port, check = two_links(vehicle)
+    sdk = mavsdk.Mavsdk(mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION))
+    try:
+        sdk.add_any_connection("udpout://127.0.0.1:%d" % port)
+        system = sdk.first_autopilot(20.0)
+        assert system is not None, "MAVSDK found no autopilot"
+        raw = MissionRaw(system)
+        items = [MissionItem(i, 6, 16, 1 if i == 0 else 0, 1, 0.0, 2.0, 0.0, float(i), 473977420 + 1000 * i,
+                             85455940 - 500 * i, 10.0 + i, 0) for i in range(60)]
+        items[10] = MissionItem(10, 2, 178, 0, 1, 1.0, 7.5, -1.0, 0.0, 0, 0, 0.0, 0)  # DO_CHANGE_SPEED
+        raw.upload_mission(items)
+        got = raw.download_mission()
+        assert len(got) == 60
+        for a, b in zip(items, got):
+            assert (a.seq, a.frame, a.command, a.autocontinue, a.x, a.y) == (b.seq, b.frame, b.command, b.autocontinue, b.x, b.y)
+            assert (a.param1, a.param2, a.param3, a.param4, a.z) == (b.param1, b.param2, b.param3, b.param4, b.z)
+        fence = [MissionItem(i, 5, 5001, 0, 1, 4.0, 0, 0, 0, 473977420 + d[0], 85455940 + d[1], 0.0, 1)
+                 for i, d in enumerate(((0, 0), (3000, 0), (3000, 3000), (0, 3000)))]
+        raw.upload_geofence(fence)
+        rally = [MissionItem(0, 6, 5100, 0, 1, 0, 0, 0, 0, 473990000, 85460000, 40.0, 2)]
+        raw.upload_rally_points(rally)
+        assert [(f.command, f.x) for f in raw.download_geofence()] == [(5001, f.x) for f in fence]
+        assert [(r.command, r.y, r.z) for r in raw.download_rallypoints()] == [(5100, 85460000, 40.0)]
+        assert len(raw.download_mission()) == 60  # the mission is untouched by the others
+    finally:
+        sdk.destroy()
+    held = check.download()
+    assert len(held) == 60 and held[59].x == 473977420 + 59000
