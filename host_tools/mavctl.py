@@ -469,7 +469,10 @@ class Param:
             if self.type != PARAM_REAL32:
                 kind = enum_name("MAV_PARAM_TYPE", self.type)
                 print("mavctl: %s is %s, sent as a float32" % (self.name, kind), file=sys.stderr)
-            return struct.pack("<f", value)
+            try:
+                return struct.pack("<f", value)
+            except OverflowError:
+                raise usage("%s: %s is beyond a float32" % (self.name, text))
         try:
             value = int(text, 0)
         except ValueError:
@@ -498,9 +501,6 @@ class Param:
 
 class Item:
     """One mission item as in a QGC WPL file: x, y in degrees (or metres in local frames)."""
-
-    FIELDS = ("seq", "current", "frame", "command", "param1", "param2", "param3", "param4",
-              "x", "y", "z", "autocontinue")
 
     def __init__(self, seq, current, frame, command, p1, p2, p3, p4, x, y, z, autocontinue):
         self.seq, self.current, self.frame, self.command = seq, current, frame, command
@@ -583,7 +583,12 @@ def read_wpl(path):
             raise usage("%s:%d: %s" % (path, number, e))
         if ints[0] != len(items):
             raise usage("%s:%d: item %d where %d was due" % (path, number, ints[0], len(items)))
-        items.append(Item(*ints[:4], *nums, ints[4]))
+        item = Item(*ints[:4], *nums, ints[4])
+        for v in (item.x, item.y):
+            # MISSION_ITEM_INT carries x and y as int32 (degrees * 1e7, metres * 1e4).
+            if not math.isfinite(v) or abs(round(v * item.scale())) >= 1 << 31:
+                raise usage("%s:%d: x and y must be numbers within the int32 range" % (path, number))
+        items.append(item)
     return items
 
 

@@ -74,8 +74,8 @@ COMPID = 1
 SERVICES = ("missions",)
 MISSION_RUNNER = False
 MISSION_CAPACITY = 500
-FENCE_CAPACITY = 100
-RALLY_CAPACITY = 20
+FENCE_CAPACITY = 0  # no geofence or rally points on this board
+RALLY_CAPACITY = 0
 UDP_BYTES_PER_S = 200000
 STORAGE = "storage"
 '''

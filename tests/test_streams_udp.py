@@ -8,7 +8,7 @@ import time
 import pytest
 
 from conftest import free_udp_port, recv
-from gcs_tools import run, command, MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED
+from gcs_tools import run, command, listen, MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED
 
 SET_INTERVAL, GET_INTERVAL, REQUEST_MESSAGE = 511, 510, 512
 
@@ -238,15 +238,15 @@ def test_simulated_vehicle_fills_every_slot_and_flies(vehicle):
     assert MissionClient(m).upload(plan) == 0
     assert run(m, 400, 1) == MAV_RESULT_ACCEPTED  # arm
     assert run(m, 176, 1 | 4) == MAV_RESULT_ACCEPTED  # AUTO
-    climbing = recv(m, "GLOBAL_POSITION_INT", 10, lambda g: g.relative_alt > 3000 and g.vz < 0)
+    climbing = listen(m, "GLOBAL_POSITION_INT", 10, lambda g: g.relative_alt > 3000 and g.vz < 0)
     assert climbing is not None
-    moving = recv(m, "VFR_HUD", 20, lambda h: h.groundspeed > 1)
+    moving = listen(m, "VFR_HUD", 20, lambda h: h.groundspeed > 1)
     assert moving is not None and moving.throttle > 0
-    assert recv(m, "GLOBAL_POSITION_INT", 5, lambda g: g.lat > LAT0 + 500 and g.vx > 0) is not None
-    assert recv(m, "ATTITUDE", 2, lambda a: a.pitch < -0.05) is not None  # nose down to go forward
-    assert recv(m, "SERVO_OUTPUT_RAW", 2, lambda s: s.servo1_raw > 1300) is not None
-    assert recv(m, "EXTENDED_SYS_STATE", 2).landed_state == 2  # in the air
-    assert recv(m, "BATTERY_STATUS", 2, lambda b: b.current_battery > 500).current_consumed > consumed0
+    assert listen(m, "GLOBAL_POSITION_INT", 5, lambda g: g.lat > LAT0 + 500 and g.vx > 0) is not None
+    assert listen(m, "ATTITUDE", 2, lambda a: a.pitch < -0.05) is not None  # nose down to go forward
+    assert listen(m, "SERVO_OUTPUT_RAW", 2, lambda s: s.servo1_raw > 1300) is not None
+    assert listen(m, "EXTENDED_SYS_STATE", 2).landed_state == 2  # in the air
+    assert listen(m, "BATTERY_STATUS", 2, lambda b: b.current_battery > 500).current_consumed > consumed0
 
 
 def approx_g():

@@ -7,7 +7,7 @@ import pytest
 
 from mavstack.encoder import Encoder
 from mavstack.endpoint import Endpoint
-from wire_oracle import OURS, decode_frames, reference
+from wire_oracle import OURS, MemoryTransport, decode_frames, reference
 
 COMMON = OURS["common"]
 CRC_LEN = COMMON.CRC_LEN
@@ -84,33 +84,6 @@ def test_v1_sends_base_fields_only():
     assert m.get_type() == "SYS_STATUS" and m.battery_remaining == -13
     [m2] = decode_frames("common", 2, f)  # a MAVLink 2 reader zero-fills the extensions
     assert m2.onboard_control_sensors_present_extended == 0
-
-
-class MemoryTransport:
-    """In-process byte pipe: what a peer sent in `rx`, what the link wrote in `tx`."""
-
-    name = "memory"
-    bytes_per_s = 100000
-
-    def __init__(self, accept=True):
-        self.rx = bytearray()
-        self.tx = bytearray()
-        self.accept = accept
-
-    def readinto(self, buf):
-        n = min(len(buf), len(self.rx))
-        buf[:n] = self.rx[:n]
-        del self.rx[:n]
-        return n
-
-    def write(self, buf, n):
-        if not self.accept:
-            return 0
-        self.tx += buf[:n]
-        return n
-
-    def close(self):
-        pass
 
 
 def test_link_negotiates_version_and_counts():

@@ -4,14 +4,16 @@ in an Endpoint dispatching to handlers that read fields and answer."""
 import contextlib
 import io
 import math
+import os
 import random
 import struct
+import subprocess
 import sys
 
 import pytest
 
-from wire_oracle import (MPY_DIR, OURS, classes, corrupt, decode_frames, full_len, pack,
-                         random_values, run_tool, reference, strip_crc)
+from conftest import FIRMWARE, MICROPYTHON, ROOT
+from wire_oracle import MPY_DIR, classes, corrupt, decode_frames, full_len, pack, random_values
 
 BENCH_IDS = (0, 30, 24, 22, 73, 76)  # HEARTBEAT ATTITUDE GPS_RAW_INT PARAM_VALUE MISSION_ITEM_INT COMMAND_LONG
 ACC = ("frames", "custom_mode", "nan_roll", "param_id_len", "lat", "command", "mission_x", "signed", "other")
@@ -83,10 +85,6 @@ def run_heaplock(runtime, portable, stream, out_dir):
             wire_heaplock.main(args)
         text = buf.getvalue()
     else:
-        from wire_oracle import FIRMWARE, MICROPYTHON, ROOT
-        import os
-        import subprocess
-
         env = dict(os.environ, MICROPYPATH=os.pathsep.join([MPY_DIR, FIRMWARE, ".frozen"]))
         env.pop("MAVSTACK_PORTABLE", None)
         if portable:

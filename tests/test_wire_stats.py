@@ -5,8 +5,7 @@ import random
 import pytest
 
 from mavstack.endpoint import Endpoint
-from test_wire_encoder import MemoryTransport
-from wire_oracle import OURS, parse_files, reference
+from wire_oracle import OURS, MemoryTransport, parse_files, reference
 
 M2 = reference("common", 2)
 COMMON = OURS["common"]

@@ -7,7 +7,6 @@ to run our parser and encoder over files on either runtime.
 import importlib.util
 import math
 import os
-import random
 import struct
 import subprocess
 import sys
@@ -17,9 +16,13 @@ from conftest import FIRMWARE, MICROPYTHON, ROOT
 
 MPY_DIR = os.path.join(ROOT, "tests", "mpy")
 WIRE_TOOL = os.path.join(MPY_DIR, "wire_tool.py")
-SPEC_2012 = "/work/shared/spec/common-2012.xml"
-if MPY_DIR not in sys.path:
-    sys.path.insert(0, MPY_DIR)
+for _path in (MPY_DIR, os.path.join(ROOT, "host_tools")):
+    if _path not in sys.path:
+        sys.path.insert(0, _path)
+
+import mavgen  # noqa: E402  (where the repository's dialects come from)
+
+SPEC_2012 = dict((name, xml) for name, xml, _ in mavgen.committed())["seed2012"]
 
 import wire_tool  # noqa: E402  (runs on both runtimes)
 
@@ -419,3 +422,30 @@ def corrupt(rnd, frames, rate=0.15, garbage_rate=0.15, dialect="common"):
             intact.append(i)
         out += region + signature
     return bytes(out), intact
+
+
+class MemoryTransport:
+    """In-process byte pipe: what a peer sent in `rx`, what the link wrote in `tx`."""
+
+    name = "memory"
+    bytes_per_s = 100000
+
+    def __init__(self, accept=True):
+        self.rx = bytearray()
+        self.tx = bytearray()
+        self.accept = accept
+
+    def readinto(self, buf):
+        n = min(len(buf), len(self.rx))
+        buf[:n] = self.rx[:n]
+        del self.rx[:n]
+        return n
+
+    def write(self, buf, n):
+        if not self.accept:
+            return 0
+        self.tx += buf[:n]
+        return n
+
+    def close(self):
+        pass

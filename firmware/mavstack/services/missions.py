@@ -21,17 +21,24 @@ payload to the length the dialect gives it. Nothing here allocates once a transf
 has started.
 
     missions = ep.services["missions"]
-    missions.stores[0|1|2]      the MissionStore of each plan type
+    missions.stores[0|1|2]      the MissionStore of each plan type (None for a capacity of
+                                0: a board without geofence or rally points)
     missions.runner             mission_runner.MissionRunner, what the application flies
                                 (None on a board with MISSION_RUNNER = False: plans are
                                 kept and served, MISSION_START is UNSUPPORTED)
     missions.allow(command, need=0)   a MAV_CMD the application flies (need: _P*/_POS bits)
     missions.on_plan            hook(mission_type): a new plan of that type is in force
 """
+import gc
+
 from ..compat import const, ticks_diff, ticks_add
 from ..fields import u16, i16, i32, f32_is_nan, f32_to_int
 from ..kernels import copy
 from ..mission_store import MissionStore, RECORD_SIZE
+
+# Loading this module from a .mpy leaves the loader's garbage between the code it
+# kept: collect it now, so that the class and tables below find room on a small heap.
+gc.collect()
 
 _MSG_REQUEST_PARTIAL_LIST = const(37)
 _MSG_WRITE_PARTIAL_LIST = const(38)
@@ -83,48 +90,49 @@ _PUSH_SHARE = const(2)  # pushed items use at most 1/2 of the link
 _CURRENT_PERIOD_MS = const(1000)
 _FRAME_MISSION = const(2)
 
-# What an item's command needs, per MAV_MISSION_TYPE, as (command, need) pairs. need:
-# bits 0-3 param1-4 must be numbers, _P7 z must be a number, _POS x/y are a position
-# (range-checked in global frames, refused in MAV_FRAME_MISSION).
+# What an item's command needs, per MAV_MISSION_TYPE: 3 bytes a command, its id (little
+# endian) and what it needs: bits 0-3 param1-4 must be numbers, _P7 z must be a
+# number, _POS x/y are a position (range-checked in global frames, refused in
+# MAV_FRAME_MISSION). Bytes, not tuples: a small board keeps them in one object.
 _P1 = const(1)
 _P2 = const(2)
 _P7 = const(64)
 _POS = const(128)
 _MISSION_RULES = (  # the seed's NAV, CONDITION and DO commands
-    16, _POS | _P7,  # NAV_WAYPOINT
-    17, _POS | _P7,  # NAV_LOITER_UNLIM
-    18, _POS | _P7 | _P1,  # NAV_LOITER_TURNS
-    19, _POS | _P7 | _P1,  # NAV_LOITER_TIME
-    20, 0,  # NAV_RETURN_TO_LAUNCH
-    21, _POS,  # NAV_LAND (z NaN: land at ground level)
-    22, _POS | _P7,  # NAV_TAKEOFF
-    80, 0,  # NAV_ROI
-    81, 0,  # NAV_PATHPLANNING
-    112, _P1,  # CONDITION_DELAY
-    113, _P1 | _P7,  # CONDITION_CHANGE_ALT
-    114, _P1,  # CONDITION_DISTANCE
-    115, _P1,  # CONDITION_YAW
-    176, _P1,  # DO_SET_MODE
-    177, _P1 | _P2,  # DO_JUMP
-    178, _P2,  # DO_CHANGE_SPEED
-    179, _P1,  # DO_SET_HOME
-    180, _P1 | _P2,  # DO_SET_PARAMETER
-    181, _P1 | _P2,  # DO_SET_RELAY
-    182, _P1 | _P2,  # DO_REPEAT_RELAY
-    183, _P1 | _P2,  # DO_SET_SERVO
-    184, _P1 | _P2,  # DO_REPEAT_SERVO
-    200, 0,  # DO_CONTROL_VIDEO
+    b"\x10\x00\xc0"  # 16 NAV_WAYPOINT: _POS | _P7
+    b"\x11\x00\xc0"  # 17 NAV_LOITER_UNLIM: _POS | _P7
+    b"\x12\x00\xc1"  # 18 NAV_LOITER_TURNS: _POS | _P7 | _P1
+    b"\x13\x00\xc1"  # 19 NAV_LOITER_TIME: _POS | _P7 | _P1
+    b"\x14\x00\x00"  # 20 NAV_RETURN_TO_LAUNCH
+    b"\x15\x00\x80"  # 21 NAV_LAND: _POS (z NaN: land at ground level)
+    b"\x16\x00\xc0"  # 22 NAV_TAKEOFF: _POS | _P7
+    b"\x50\x00\x00"  # 80 NAV_ROI
+    b"\x51\x00\x00"  # 81 NAV_PATHPLANNING
+    b"\x70\x00\x01"  # 112 CONDITION_DELAY: _P1
+    b"\x71\x00\x41"  # 113 CONDITION_CHANGE_ALT: _P1 | _P7
+    b"\x72\x00\x01"  # 114 CONDITION_DISTANCE: _P1
+    b"\x73\x00\x01"  # 115 CONDITION_YAW: _P1
+    b"\xb0\x00\x01"  # 176 DO_SET_MODE: _P1
+    b"\xb1\x00\x03"  # 177 DO_JUMP: _P1 | _P2
+    b"\xb2\x00\x02"  # 178 DO_CHANGE_SPEED: _P2
+    b"\xb3\x00\x01"  # 179 DO_SET_HOME: _P1
+    b"\xb4\x00\x03"  # 180 DO_SET_PARAMETER: _P1 | _P2
+    b"\xb5\x00\x03"  # 181 DO_SET_RELAY: _P1 | _P2
+    b"\xb6\x00\x03"  # 182 DO_REPEAT_RELAY: _P1 | _P2
+    b"\xb7\x00\x03"  # 183 DO_SET_SERVO: _P1 | _P2
+    b"\xb8\x00\x03"  # 184 DO_REPEAT_SERVO: _P1 | _P2
+    b"\xc8\x00\x00"  # 200 DO_CONTROL_VIDEO
 )
 _FENCE_RULES = (
-    5000, _POS,  # NAV_FENCE_RETURN_POINT
-    5001, _POS | _P1,  # NAV_FENCE_POLYGON_VERTEX_INCLUSION (param1: vertex count)
-    5002, _POS | _P1,  # NAV_FENCE_POLYGON_VERTEX_EXCLUSION
-    5003, _POS | _P1,  # NAV_FENCE_CIRCLE_INCLUSION (param1: radius)
-    5004, _POS | _P1,  # NAV_FENCE_CIRCLE_EXCLUSION
+    b"\x88\x13\x80"  # 5000 NAV_FENCE_RETURN_POINT: _POS
+    b"\x89\x13\x81"  # 5001 NAV_FENCE_POLYGON_VERTEX_INCLUSION: _POS | _P1 (vertex count)
+    b"\x8a\x13\x81"  # 5002 NAV_FENCE_POLYGON_VERTEX_EXCLUSION: _POS | _P1
+    b"\x8b\x13\x81"  # 5003 NAV_FENCE_CIRCLE_INCLUSION: _POS | _P1 (radius)
+    b"\x8c\x13\x81"  # 5004 NAV_FENCE_CIRCLE_EXCLUSION: _POS | _P1
 )
-_RALLY_RULES = (5100, _POS | _P7)  # NAV_RALLY_POINT
+_RALLY_RULES = b"\xec\x13\xc0"  # 5100 NAV_RALLY_POINT: _POS | _P7
 _RULES = (_MISSION_RULES, _FENCE_RULES, _RALLY_RULES)
-_LOCAL_FRAMES = (1, 4, 7, 8, 9, 12, 20, 21)  # x, y in metres (* 1e4 in MISSION_ITEM_INT)
+_LOCAL_FRAMES = b"\x01\x04\x07\x08\x09\x0c\x14\x15"  # x, y in metres (* 1e4 in MISSION_ITEM_INT)
 _NAMES = ("mission", "fence", "rally")  # also their files' names in storage
 
 
@@ -174,12 +182,14 @@ class Missions:
     # --- wiring -------------------------------------------------------------------
     def attach(self, ep):
         self.ep = ep
-        self.stores = (MissionStore(ep.storage, _NAMES[0], 0, self.capacities[0]),
-                       MissionStore(ep.storage, _NAMES[1], 1, self.capacities[1]),
-                       MissionStore(ep.storage, _NAMES[2], 2, self.capacities[2]))
-        for s in self.stores:
-            if s.corrupt:
-                ep.statustext(3, "Stored %s plan corrupt: cleared" % _NAMES[s.mission_type])  # MAV_SEVERITY_ERROR
+        stores = []
+        for t in range(3):
+            capacity = self.capacities[t]
+            s = MissionStore(ep.storage, _NAMES[t], t, capacity) if capacity or t == 0 else None
+            if s is not None and s.corrupt:
+                ep.statustext(3, "Stored %s plan corrupt: cleared" % _NAMES[t])  # MAV_SEVERITY_ERROR
+            stores.append(s)
+        self.stores = stores
         # MISSION_ITEM_INT and MISSION_REQUEST_INT are in today's dialect, not the seed's
         # (where id 51 is another message); mission_type is an extension field.
         self.has_int = ep.has(_MSG_ITEM_INT) and ep.fmt(_MSG_ITEM_INT).startswith("<ffffiif") \
@@ -196,8 +206,10 @@ class Missions:
             ep.on(_MSG_ITEM_INT, self._on_item)
             ep.on(_MSG_REQUEST_INT, self._on_request)
             ep.capabilities |= _CAP_MISSION_INT
-        if self.has_type:
-            ep.capabilities |= _CAP_MISSION_FENCE | _CAP_MISSION_RALLY
+        if self.has_type and stores[1] is not None:
+            ep.capabilities |= _CAP_MISSION_FENCE
+        if self.has_type and stores[2] is not None:
+            ep.capabilities |= _CAP_MISSION_RALLY
         ep.producers[_MSG_CURRENT] = self.send_current
         self._current_due = ep.now
 
@@ -246,7 +258,8 @@ class Missions:
             result = _DENIED
         elif self.state != _IDLE and not self._is_peer(link):
             result = _DENIED  # one transfer at a time; the one under way goes on
-        elif mission_type == _TYPE_MISSION or (mission_type < 3 and link.version == 2 and self.has_type):
+        elif mission_type == _TYPE_MISSION or (mission_type < 3 and link.version == 2 and self.has_type
+                                               and self.stores[mission_type] is not None):
             self.state = _IDLE  # the peer starts over: whatever it had under way is dropped
             return mission_type
         elif mission_type == _TYPE_ALL and change and (link.version == 2 or not self.has_type):
@@ -511,10 +524,10 @@ class Missions:
             if not self._is_peer(link):
                 self._ack(link, rx.sysid, rx.compid, _DENIED, mt)
             return
-        if mt > 2 or (mt and link.version == 1):
+        store = self.stores[mt] if mt < 3 and (mt == 0 or link.version == 2) else None
+        if store is None:
             self._ack(link, rx.sysid, rx.compid, _UNSUPPORTED, mt)
             return
-        store = self.stores[mt]
         seq = u16(p, 0)
         if seq >= store.count:
             self.state = _IDLE
@@ -562,7 +575,7 @@ class Missions:
             return
         result = _ACCEPTED
         for store in self.stores:
-            if mt == _TYPE_ALL or mt == store.mission_type:
+            if store is not None and (mt == _TYPE_ALL or mt == store.mission_type):
                 r = self._clear(store)
                 if r != _ACCEPTED:
                     result = r
@@ -598,7 +611,7 @@ class Missions:
         buf[off + 2] = total & 0xFF
         buf[off + 3] = total >> 8
         for i in range(3):  # mission_id, fence_id, rally_points_id, where the dialect has them
-            _put_u32(buf, off + 6 + 4 * i, stores[i].plan_id)
+            _put_u32(buf, off + 6 + 4 * i, stores[i].plan_id if stores[i] is not None else 0)
         return link.send(_MSG_CURRENT)
 
     def send_reached(self, seq):
@@ -616,14 +629,15 @@ class Missions:
         buf[off + 2] = result
         buf[off + 3] = mission_type
         # opaque_id (where the dialect has it): the new plan's id after an upload.
-        _put_u32(buf, off + 4, self.stores[mission_type].plan_id if result == _ACCEPTED and mission_type < 3 else 0)
+        store = self.stores[mission_type] if mission_type < 3 else None
+        _put_u32(buf, off + 4, store.plan_id if result == _ACCEPTED and store is not None else 0)
         link.send(_MSG_ACK)
 
 
 def _need(rules, command):
-    for i in range(0, len(rules), 2):
-        if rules[i] == command:
-            return rules[i + 1]
+    for i in range(0, len(rules), 3):
+        if rules[i] | rules[i + 1] << 8 == command:
+            return rules[i + 2]
     return -1
 
 
@@ -687,8 +701,6 @@ def _to_float(v, scale_e):
 
 
 def create(ep):
-    import gc
-
     gc.collect()  # the stores and tables below are long-lived: start them on a tidy heap
     board = getattr(ep, "board", None)
     options = getattr(ep, "options", None) or {}
