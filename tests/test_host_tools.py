@@ -247,6 +247,8 @@ def test_params(gcs_link, tmp_path):
     assert r.returncode == 2 and "is outside" in r.stderr
     r = mavctl(link, "params", "set", "SIM_GPS_SATS", "1.5")
     assert r.returncode == 2
+    r = mavctl(link, "params", "set", "SIM_SPEED", "1e39")
+    assert r.returncode == 2 and "float32" in r.stderr
     r = mavctl(link, "params", "get", "NO_SUCH_PARAM")
     assert r.returncode == 1 and "NO_SUCH_PARAM" in r.stderr
 

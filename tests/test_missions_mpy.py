@@ -67,6 +67,11 @@ LEAN_MESSAGES = ("MISSION_REQUEST_PARTIAL_LIST,MISSION_WRITE_PARTIAL_LIST,MISSIO
                  "MISSION_SET_CURRENT,MISSION_CURRENT,MISSION_REQUEST_LIST,MISSION_COUNT,MISSION_CLEAR_ALL,"
                  "MISSION_ITEM_REACHED,MISSION_ACK,MISSION_REQUEST_INT,MISSION_ITEM_INT")
 LEAN_BOARD = '''"""Missions only, for a board with a few tens of KB of RAM."""
+import gc
+
+import mavstack.services.missions  # the largest module first, while the heap is in one piece
+
+gc.collect()
 NAME = "lean"
 DIALECT = "missions_lean"
 SYSID = 1

@@ -103,6 +103,9 @@ _cpython = {}
 def test_heap_locked_parse_encode_and_link(tmp_path, damaged_stream, portable):
     stream, intact = damaged_stream
     assert len(intact) >= 10000
+    kinds = [f[0] for f in intact]
+    truncated = [f for f in intact if f[0] == 0xFD and f[1] < full_len("common", f[7] | f[8] << 8 | f[9] << 16)]
+    assert kinds.count(0xFE) > 2000 and kinds.count(0xFD) > 6000 and len(truncated) > 2000
     got = run_heaplock("mpy", portable, stream, tmp_path)
     assert got["kernels"] == ("portable" if portable else "viper")
 

@@ -27,7 +27,6 @@ has started.
                                 (None on a board with MISSION_RUNNER = False: plans are
                                 kept and served, MISSION_START is UNSUPPORTED)
     missions.allow(command, need=0)   a MAV_CMD the application flies (need: _P*/_POS bits)
-    missions.on_plan            hook(mission_type): a new plan of that type is in force
 """
 import gc
 
@@ -139,9 +138,11 @@ _NAMES = ("mission", "fence", "rally")  # also their files' names in storage
 class Missions:
     NAME = "missions"
 
-    def __init__(self, capacities=(500, 100, 20), frames=(0, 2, 3, 5, 6), retry_ms=250,
+    def __init__(self, storage, capacities=(500, 100, 20), frames=(0, 2, 3, 5, 6), retry_ms=250,
                  retries=5, timeout_ms=5000, jump_slots=16, commands=()):
-        self.capacities = capacities
+        # (Few attributes: on a small heap a bigger instance dict may not find room.)
+        self.stores = [MissionStore(storage, _NAMES[t], t, capacities[t]) if capacities[t] or t == 0 else None
+                       for t in range(3)]
         self.frames = frames
         self.retry_ms = retry_ms
         self.retries = retries
@@ -150,7 +151,6 @@ class Missions:
         self.extra = None  # {command: need} the application added to the mission rules
         for command in commands:
             self.allow(command)
-        self.on_plan = None
         self.runner = None
         self._rec = bytearray(RECORD_SIZE)
         # The transfer under way (one at a time) and its peer.
@@ -162,7 +162,6 @@ class Missions:
         self.t_seq = 0  # upload: next item expected; partial download: next to push
         self.t_end = 0  # last item of this transfer
         self.t_int = True  # upload: ask with MISSION_REQUEST_INT (else the seed's MISSION_REQUEST)
-        self.t_v2 = True  # the peer speaks MAVLink 2
         self.t_current = -1  # upload: the item sent with current=1, -2: keep the current one
         self.t_sent = 0  # ticks of the last request / push
         self.t_heard = 0  # ticks of the last frame from the peer
@@ -182,14 +181,10 @@ class Missions:
     # --- wiring -------------------------------------------------------------------
     def attach(self, ep):
         self.ep = ep
-        stores = []
-        for t in range(3):
-            capacity = self.capacities[t]
-            s = MissionStore(ep.storage, _NAMES[t], t, capacity) if capacity or t == 0 else None
+        stores = self.stores
+        for s in stores:
             if s is not None and s.corrupt:
-                ep.statustext(3, "Stored %s plan corrupt: cleared" % _NAMES[t])  # MAV_SEVERITY_ERROR
-            stores.append(s)
-        self.stores = stores
+                ep.statustext(3, "Stored %s plan corrupt: cleared" % _NAMES[s.mission_type])  # MAV_SEVERITY_ERROR
         # MISSION_ITEM_INT and MISSION_REQUEST_INT are in today's dialect, not the seed's
         # (where id 51 is another message); mission_type is an extension field.
         self.has_int = ep.has(_MSG_ITEM_INT) and ep.fmt(_MSG_ITEM_INT).startswith("<ffffiif") \
@@ -220,7 +215,8 @@ class Missions:
             if self.t_tries >= self.retries or ticks_diff(now, self.t_heard) >= self.timeout_ms:
                 self.state = _IDLE
                 self._ack(self.t_link, self.t_peer >> 8, self.t_peer & 0xFF,
-                          _OPERATION_CANCELLED if self.t_v2 else _ERROR, self.t_store.mission_type)
+                          _OPERATION_CANCELLED if self.t_link.version == 2 else _ERROR,
+                          self.t_store.mission_type)
             else:
                 self.t_tries += 1
                 self._request(self.t_seq)
@@ -278,8 +274,7 @@ class Missions:
         self.t_store = store
         self.t_seq = seq
         self.t_end = end
-        self.t_v2 = rx.version == 2
-        self.t_int = self.has_int and self.t_v2
+        self.t_int = self.has_int and rx.version == 2
         self.t_tries = 0
         now = self.ep.now
         self.t_heard = now
@@ -408,8 +403,6 @@ class Missions:
         if store.mission_type == _TYPE_MISSION and self.runner is not None:
             self.runner.plan_changed(current)
         self.current_changed()
-        if self.on_plan is not None:
-            self.on_plan(store.mission_type)
 
     def _check(self, p, is_int, seq):
         """Validate an item and build its record in self._rec -> MAV_MISSION_RESULT."""
@@ -709,6 +702,7 @@ def create(ep):
         return int(options.get(name.lower(), getattr(board, name, default)))
 
     missions = ep.add(Missions(
+        ep.storage,
         capacities=(setting("MISSION_CAPACITY", 500), setting("FENCE_CAPACITY", 100),
                     setting("RALLY_CAPACITY", 20)),
         frames=getattr(board, "MISSION_FRAMES", (0, 2, 3, 5, 6)),
