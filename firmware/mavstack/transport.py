@@ -6,10 +6,9 @@ Every transport has the same small, non-blocking, allocation-free face:
     bytes_per_s   what the medium carries, for pacing and stream budgets
 Specs as on the command line: udpout:HOST:PORT, udpin:ADDR:PORT, serial:DEVICE:BAUD.
 """
-from .compat import MICROPYTHON, ticks_ms, ticks_diff
+from .compat import MICROPYTHON
 
 UDP_BYTES_PER_S = 200000  # nominal budget for UDP links; boards may override
-_UDPIN_IDLE_MS = 5000  # a udpin link forgets a silent peer after this
 
 
 def _sockaddr(socket, host, port):
@@ -18,10 +17,13 @@ def _sockaddr(socket, host, port):
 
 class UdpTransport:
     """udpout sends to HOST:PORT and hears its replies (the SITL convention);
-    udpin listens on ADDR:PORT and answers the peer that last spoke.
+    udpin listens on ADDR:PORT and answers the ground station that spoke last.
 
-    The socket is connect()ed to its peer so that reads and writes go through the
-    stream calls, which allocate nothing; udpin learns its peer with one recvfrom.
+    Traffic goes through a socket connect()ed to the peer, so that reads and writes
+    are the stream calls, which allocate nothing. udpin also keeps an unconnected
+    socket bound to the same port: the kernel hands it only datagrams from other
+    addresses, so a new ground station is heard at once (one recvfrom, a rare event)
+    and becomes the peer.
     MicroPython's readinto fills the whole buffer with as many queued datagrams as
     fit and cuts short the one that does not (its tail is lost), so a link reads UDP
     in rx_chunk bytes, far more than a burst of ground-station traffic; a read that
@@ -32,6 +34,7 @@ class UdpTransport:
 
     def __init__(self, mode, host, port, bytes_per_s=UDP_BYTES_PER_S):
         import socket
+        import select
 
         self._socket = socket
         self.mode = mode
@@ -40,42 +43,56 @@ class UdpTransport:
         self.bytes_per_s = bytes_per_s
         self.name = "%s:%s:%d" % (mode, host, port)
         self.peer = None
+        self.sock = None
         self.rx_overruns = 0
-        self._last_rx = ticks_ms()
-        self._open()
+        self._listen = None
+        addr = _sockaddr(socket, host, port)
+        if mode == "udpin":
+            self._listen = self._bound(addr)
+            self._poll = select.poll()
+            self._poll.register(self._listen, select.POLLIN)
+            self._addr = addr
+        else:
+            self._connect(None, addr)
 
-    def _open(self):
+    def _bound(self, addr):
         socket = self._socket
         s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        addr = _sockaddr(socket, self.host, self.port)
-        if self.mode == "udpin":
-            try:
-                s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-            except (OSError, AttributeError):
-                pass
-            s.bind(addr)
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        s.bind(addr)
+        s.setblocking(False)
+        return s
+
+    def _connect(self, local, peer):
+        if self.sock is not None:
+            self.sock.close()
+        if local is None:
+            socket = self._socket
+            s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         else:
-            s.connect(addr)
-            self.peer = addr
+            s = self._bound(local)
+        s.connect(peer)
         s.setblocking(False)
         self.sock = s
+        self.peer = peer
 
-    def _learn_peer(self, buf):
-        # udpin without a peer yet: one allocating recvfrom, then connect to it.
-        try:
-            data, addr = self.sock.recvfrom(len(buf))
-        except OSError:
-            return 0
-        self.sock.connect(addr)
-        self.peer = addr
-        n = len(data)
-        buf[0:n] = data
-        return n
+    def _newcomer(self, buf):
+        # Something on the listening socket: a ground station that is not our peer.
+        for _obj, _ev in (self._poll.ipoll(0) if MICROPYTHON else self._poll.poll(0)):
+            try:
+                data, addr = self._listen.recvfrom(len(buf))
+            except OSError:
+                return 0
+            if addr != self.peer:
+                self._connect(self._addr, addr)
+            n = len(data)
+            buf[0:n] = data
+            return n
+        return 0
 
     def readinto(self, buf):
-        if self.peer is None:
-            n = self._learn_peer(buf)
-        else:
+        n = 0
+        if self.sock is not None:
             try:
                 n = self.sock.readinto(buf) if MICROPYTHON else self.sock.recv_into(buf)
             except OSError:  # nothing waiting, or the peer's port is closed
@@ -84,24 +101,15 @@ class UdpTransport:
                 n = 0
             elif n == len(buf) and MICROPYTHON:
                 self.rx_overruns += 1
-        now = ticks_ms()
-        if n:
-            self._last_rx = now
-        elif self.mode == "udpin" and self.peer is not None:
-            if ticks_diff(now, self._last_rx) > _UDPIN_IDLE_MS:
-                self.reopen()
+        if not n and self._listen is not None:
+            n = self._newcomer(buf)
         return n
-
-    def reopen(self):
-        """Forget the peer (udpin) so that the next ground station to speak is answered."""
-        self.sock.close()
-        self.peer = None
-        self._last_rx = ticks_ms()
-        self._open()
 
     if MICROPYTHON:
 
         def write(self, buf, n):
+            if self.sock is None:
+                return 0
             try:
                 return self.sock.write(buf, n) or 0
             except OSError:
@@ -110,7 +118,7 @@ class UdpTransport:
     else:
 
         def write(self, buf, n):
-            if self.peer is None:
+            if self.sock is None:
                 return 0
             try:
                 return self.sock.send(memoryview(buf)[:n])
@@ -118,7 +126,10 @@ class UdpTransport:
                 return 0
 
     def close(self):
-        self.sock.close()
+        if self.sock is not None:
+            self.sock.close()
+        if self._listen is not None:
+            self._listen.close()
 
 
 class SerialTransport:
