@@ -63,7 +63,7 @@ def build(board, opts):
     ep.storage = Storage(opts.get("storage") or board.STORAGE)
     specs = opts.get("links") or []
     # --set udp_bytes_per_s=5760 makes UDP links pace themselves like a 57600 baud radio.
-    udp_rate = int(ep.options.get("udp_bytes_per_s") or getattr(board, "UDP_BYTES_PER_S", 200000))
+    udp_rate = ep.setting("UDP_BYTES_PER_S", 200000)
     if specs:
         for spec in specs:
             ep.add_link(open_transport(spec, udp_rate))

@@ -376,7 +376,7 @@ def test_download_holds_the_lock_until_the_last_item(rig):
 
 
 def test_operator_control(tmp_path):
-    r = Rig(tmp_path, services=("status", "commands", "missions"), options={"passkey": "pw"})
+    r = Rig(tmp_path, services=("status", "commands", "missions"), options={"operator_passkey": "pw"})
     old = plan(2)
     r.take()
     r.send("mission_count", 1, 1, 2, 0)

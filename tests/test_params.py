@@ -203,7 +203,7 @@ def test_interrupted_save_keeps_previous_file(vehicle, tmp_path):
 
 def test_operator_control_gates_changes(vehicle):
     p1, p2 = free_udp_port(), free_udp_port()
-    v = vehicle(links=["udpin:127.0.0.1:%d" % p1, "udpin:127.0.0.1:%d" % p2], args=["--set", "passkey=secret"])
+    v = vehicle(links=["udpin:127.0.0.1:%d" % p1, "udpin:127.0.0.1:%d" % p2], args=["--set", "operator_passkey=secret"])
     boss = v.gcs(port=p1, source_system=200)
     other = v.gcs(port=p2, source_system=201)
     boss.mav.change_operator_control_send(1, 0, 0, b"secret")

@@ -211,7 +211,7 @@ def test_mavlink2_ground_station_switches_the_link_to_mavlink2(vehicle):
 def test_operator_control(vehicle):
     # Two ground stations on two links (a udpin link answers one peer).
     ports = free_udp_port(), free_udp_port()
-    v = start(vehicle, "--set", "passkey=Open-Sesame", "--set", "gcs_timeout_ms=1500",
+    v = start(vehicle, "--set", "operator_passkey=Open-Sesame", "--set", "gcs_timeout_ms=1500",
               links=["udpin:127.0.0.1:%d" % p for p in ports])
     a = v.gcs(source_system=255, port=ports[0])
     b = v.gcs(source_system=254, port=ports[1])

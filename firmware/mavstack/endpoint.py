@@ -48,6 +48,19 @@ class Endpoint:
         self._handlers.setdefault(msgid, []).append(handler)
         return True
 
+    def setting(self, name, default=None):
+        """A board setting: `--set name=V` (lower case) over the profile's NAME over default."""
+        value = (getattr(self, "options", None) or {}).get(name.lower())
+        if value is None:
+            return getattr(getattr(self, "board", None), name, default)
+        if isinstance(default, bool):
+            return value not in ("0", "false", "no", "")
+        if isinstance(default, int):
+            return int(value)
+        if isinstance(default, float):
+            return float(value)
+        return value
+
     def has(self, msgid):
         return msgid in self.dialect.CRC_LEN
 

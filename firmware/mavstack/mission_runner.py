@@ -47,13 +47,14 @@ _LOCAL_FRAMES = (1, 4, 7, 8, 9, 12, 20, 21)
 
 
 class Item:
-    """One mission item, decoded from its record."""
+    """One mission item, decoded from its record: seq, command, frame, autocontinue,
+    param1..param4, z (floats), x, y (as stored: degrees * 1e7, metres * 1e4 in local
+    frames), lat, lon (degrees, or metres in local frames), is_nav / is_condition / is_do."""
 
     def decode(self, seq, rec):
         self.seq = seq
         (self.param1, self.param2, self.param3, self.param4, self.x, self.y, self.z,
          self.command, self.frame, self.autocontinue) = struct.unpack_from("<ffffiifHBB", rec, 0)
-        # x, y as stored: degrees * 1e7, or metres * 1e4 in local frames.
         scale = 1e4 if self.frame in _LOCAL_FRAMES else 1e7
         self.lat = self.x / scale
         self.lon = self.y / scale

@@ -244,9 +244,10 @@ class Missions:
         the payload view holds stale bytes past a message's length)."""
         return p[o] if self.has_type else 0
 
-    def _open(self, link, p, at, mission_type, change):
+    def _open(self, link, p, at, mission_type, change, every=False):
         """Checks shared by the requests that start something -> the plan type, or -1
-        once refused. at: offset of target_system; change: needs operator control."""
+        once refused. at: offset of target_system; change: needs operator control;
+        every: MAV_MISSION_TYPE_ALL (255) is allowed (MISSION_CLEAR_ALL)."""
         if not self.ep.for_us(p[at], p[at + 1]):
             return -1
         rx = link.rx
@@ -258,7 +259,7 @@ class Missions:
                                                and self.stores[mission_type] is not None):
             self.state = _IDLE  # the peer starts over: whatever it had under way is dropped
             return mission_type
-        elif mission_type == _TYPE_ALL and change and (link.version == 2 or not self.has_type):
+        elif mission_type == _TYPE_ALL and every:
             self.state = _IDLE
             return mission_type
         else:
@@ -563,7 +564,7 @@ class Missions:
 
     # --- clear, current -----------------------------------------------------------
     def _on_clear_all(self, link, p):
-        mt = self._open(link, p, 0, self._type(p, 2), True)
+        mt = self._open(link, p, 0, self._type(p, 2), True, True)
         if mt < 0:
             return
         result = _ACCEPTED
@@ -696,23 +697,18 @@ def _to_float(v, scale_e):
 def create(ep):
     gc.collect()  # the stores and tables below are long-lived: start them on a tidy heap
     board = getattr(ep, "board", None)
-    options = getattr(ep, "options", None) or {}
-
-    def setting(name, default):
-        return int(options.get(name.lower(), getattr(board, name, default)))
-
     missions = ep.add(Missions(
         ep.storage,
-        capacities=(setting("MISSION_CAPACITY", 500), setting("FENCE_CAPACITY", 100),
-                    setting("RALLY_CAPACITY", 20)),
+        capacities=(ep.setting("MISSION_CAPACITY", 500), ep.setting("FENCE_CAPACITY", 100),
+                    ep.setting("RALLY_CAPACITY", 20)),
         frames=getattr(board, "MISSION_FRAMES", (0, 2, 3, 5, 6)),
-        retry_ms=setting("MISSION_RETRY_MS", 250),
-        retries=setting("MISSION_RETRIES", 5),
-        timeout_ms=setting("MISSION_TIMEOUT_MS", 5000),
-        jump_slots=setting("MISSION_JUMP_SLOTS", 16),
+        retry_ms=ep.setting("MISSION_RETRY_MS", 250),
+        retries=ep.setting("MISSION_RETRIES", 5),
+        timeout_ms=ep.setting("MISSION_TIMEOUT_MS", 5000),
+        jump_slots=ep.setting("MISSION_JUMP_SLOTS", 16),
         commands=getattr(board, "MISSION_COMMANDS", ()),
     ))
-    if getattr(board, "MISSION_RUNNER", True):
+    if ep.setting("MISSION_RUNNER", True):
         from ..mission_runner import MissionRunner
 
         MissionRunner(missions)

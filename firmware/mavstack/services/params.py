@@ -384,20 +384,10 @@ class Params(ParamTable):
 
 
 def create(ep):
-    board = getattr(ep, "board", None)
-    options = getattr(ep, "options", None) or {}
-
-    def setting(name, default):
-        # --set param_encoding=c_cast overrides the profile's PARAM_ENCODING
-        value = options.get(name.lower())
-        if value is None:
-            return getattr(board, name, default)
-        return int(value) if isinstance(default, int) else value
-
     params = Params(
-        getattr(board, "PARAMS", ()),
-        setting("PARAM_ENCODING", "bytewise"),
-        setting("PARAM_AUTOSAVE_MS", 0),
-        getattr(board, "PARAM_SYSID", None),
+        getattr(getattr(ep, "board", None), "PARAMS", ()),
+        ep.setting("PARAM_ENCODING", "bytewise"),
+        ep.setting("PARAM_AUTOSAVE_MS", 0),
+        ep.setting("PARAM_SYSID"),
     )
     return ep.add(params)

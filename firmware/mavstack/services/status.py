@@ -508,14 +508,12 @@ def _uid(board, sysid):
 
 def create(ep):
     board = getattr(ep, "board", None)
-    options = getattr(ep, "options", None) or {}
-    passkey = options.get("passkey", getattr(board, "OPERATOR_PASSKEY", None))
     status = Status(
-        mav_type=getattr(board, "MAV_TYPE", 2),
-        autopilot=getattr(board, "MAV_AUTOPILOT", 0),
-        gcs_timeout_ms=int(options.get("gcs_timeout_ms", getattr(board, "GCS_TIMEOUT_MS", 5000))),
-        passkey=passkey or None,
+        mav_type=ep.setting("MAV_TYPE", 2),
+        autopilot=ep.setting("MAV_AUTOPILOT", 0),
+        gcs_timeout_ms=ep.setting("GCS_TIMEOUT_MS", 5000),
+        passkey=ep.setting("OPERATOR_PASSKEY") or None,
         uid=_uid(board, ep.sysid),
-        reboot_delay_ms=getattr(board, "REBOOT_DELAY_MS", 100),
+        reboot_delay_ms=ep.setting("REBOOT_DELAY_MS", 100),
     )
     return ep.add(status)
