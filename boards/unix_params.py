@@ -1,7 +1,9 @@
 """Parameters of the simulated vehicle (boards/unix.py): a small quadcopter's set.
 
 One row a parameter: (name, MAV_PARAM_TYPE, default, min, max, flags); see
-mavstack/services/params.py. SR0_*/SR1_* are telemetry rates (Hz) for links 0 and 1.
+mavstack/services/params.py. The table is what a ground station sees of a small
+autopilot: every value can be listed, edited and kept; the simulator acts on the WP_*
+speeds and radius, SIM_YAW_RATE and FS_GCS_ENABLE, the rest are stored and served.
 Integers are INT32, as on PX4: MAVSDK (4.x) lists and sets only INT32 and REAL32
 parameters of a bytewise autopilot; the service itself takes every 8/16/32-bit type.
 """
@@ -116,9 +118,9 @@ PARAMS = (
     ("SERIAL1_BAUD", INT32, 57600, 1200, 921600, REBOOT),
     ("LOG_BITMASK", INT32, 176126, 0, None),
     # telemetry rates in Hz, per link
-    ("SR0_POSITION", INT32, 4, 0, 50),
-    ("SR0_EXTRA1", INT32, 4, 0, 50),
-    ("SR0_EXT_STAT", INT32, 2, 0, 50),
-    ("SR1_POSITION", INT32, 2, 0, 50),
-    ("SR1_EXTRA1", INT32, 2, 0, 50),
+    ("SIM_MASS_KG", REAL32, 1.5, 0.1, 50.0),
+    ("SIM_DRAG", REAL32, 0.2, 0.0, 5.0),
+    ("SIM_TEMP_C", REAL32, 20.0, -40.0, 60.0),
+    ("SIM_BARO_NOISE", REAL32, 0.1, 0.0, 10.0),
+    ("SIM_MAG_NOISE", REAL32, 0.0, 0.0, 10.0),
 )
