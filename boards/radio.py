@@ -21,6 +21,7 @@ PARAM_SYSID = "MAV_SYS_ID"
 # ground stations change them with SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM.
 DEFAULT_STREAMS = (
     (1, 1),  # SYS_STATUS
+    (42, 1),  # MISSION_CURRENT
     (24, 1),  # GPS_RAW_INT
     (30, 4),  # ATTITUDE
     (33, 2),  # GLOBAL_POSITION_INT

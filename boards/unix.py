@@ -44,9 +44,10 @@ PARAM_SYSID = "MAV_SYS_ID"  # the read-only parameter that shows the system id
 # (message id, Hz) sent on every link without being asked: QGroundControl and MAVSDK
 # never send REQUEST_DATA_STREAM to a generic autopilot. Ground stations change them
 # with MAV_CMD_SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM (mavstack/services/streams.py).
-# HEARTBEAT and MISSION_CURRENT come from their own services once a second.
+# HEARTBEAT comes from the status service once a second.
 DEFAULT_STREAMS = (
     (1, 1),  # SYS_STATUS
+    (42, 1),  # MISSION_CURRENT
     (2, 1),  # SYSTEM_TIME
     (24, 2),  # GPS_RAW_INT
     (30, 10),  # ATTITUDE

@@ -207,6 +207,7 @@ class Missions:
             ep.capabilities |= _CAP_MISSION_RALLY
         ep.producers[_MSG_CURRENT] = self.send_current
         self._current_due = ep.now
+        self._current_changed = True
 
     # --- periodic work ------------------------------------------------------------
     def tick(self, now):
@@ -224,15 +225,19 @@ class Missions:
             self._push(now)
         elif state == _DOWNLOAD and ticks_diff(now, self.t_heard) >= self.timeout_ms:
             self.state = _IDLE  # the ground station went away; nothing to undo
-        # On change, and once a second (like HEARTBEAT, not left to the streams service).
-        if ticks_diff(now, self._current_due) >= 0:
+        # On change; and once a second unless the streams service schedules it (it is
+        # in the default streams there, and a ground station may change its rate).
+        if self._current_changed or (
+            ticks_diff(now, self._current_due) >= 0 and self.ep.services.get("streams") is None
+        ):
             for link in self.ep.links:
                 self.send_current(link)
+            self._current_changed = False
             self._current_due = ticks_add(now, _CURRENT_PERIOD_MS)
 
     def current_changed(self):
         """Send MISSION_CURRENT on the next tick (the runner calls this)."""
-        self._current_due = self.ep.now
+        self._current_changed = True
 
     # --- starting a transfer ------------------------------------------------------
     def _is_peer(self, link):
