@@ -5,6 +5,7 @@ Options: --board NAME, --link SPEC (repeatable: udpout:HOST:PORT, udpin:ADDR:POR
 serial:DEVICE:BAUD), --storage DIR, --sysid N, --set NAME=VALUE (board option,
 repeatable). On a board, with no arguments, the profile flashed as board.py is used.
 """
+import gc
 import sys
 
 from mavstack.compat import ticks_ms, sleep_ms
@@ -71,6 +72,7 @@ def build(board, opts):
         for transport in board.transports():
             ep.add_link(transport)
     for name in board.SERVICES:
+        gc.collect()  # keep the heap unfragmented while each service loads
         module = __import__("mavstack.services." + name, None, None, ("create",))
         module.create(ep)
     app = board.application(ep) if hasattr(board, "application") else None

@@ -218,3 +218,23 @@ def test_micropython_parses_and_encodes_every_message(tmp_path, dialect, portabl
         if not signed and not has_nan(vals):
             assert ours == fr, cls.msgname  # byte for byte pymavlink's frame
         check_decoded(dialect, v, ours, cls, vals, seq, sysid, compid)
+
+
+def test_mavlink1_frame_with_extension_bytes_is_accepted():
+    """A MAVLink 1 frame longer than the base fields (pymavlink's v2 module forced to
+    v1, the C library) carries the extensions too; up to the full length is valid."""
+    from pymavlink.dialects.v20 import common as v2
+    from mavstack.dialects import common as dialect
+    from mavstack.parser import Parser
+
+    mav = v2.MAVLink(None, srcSystem=9, srcComponent=8)
+    frame = mav.mission_count_encode(1, 1, 7, 2).pack(mav, force_mavlink1=True)
+    assert frame[0] == 0xFE and frame[1] > dialect.CRC_LEN[44] >> 8 & 0xFF
+    got = []
+    p = Parser(dialect.CRC_LEN, lambda msgid, payload: got.append((msgid, bytes(payload[:5]))))
+    p.feed(frame)
+    assert got == [(44, bytes([7, 0, 1, 1, 2]))] and p.bad_frames == 0
+    too_long = bytearray(frame)
+    too_long[1] = (dialect.CRC_LEN[44] >> 16) + 1
+    p.feed(too_long)
+    assert len(got) == 1 and p.bad_frames == 1

@@ -133,7 +133,9 @@ class Parser:
             if info is None:
                 self.unknown_ids += 1
                 return False
-            if plen != (info >> 8) & 0xFF:
+            # At least the base fields; senders built from a newer definition (the
+            # MAVLink C library, pymavlink forced to v1) may add extension bytes.
+            if plen < (info >> 8) & 0xFF or plen > info >> 16:
                 self.bad_frames += 1
                 return False
             want = HEADER_V1 + plen + 2
