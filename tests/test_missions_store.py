@@ -1,4 +1,4 @@
-"""The flash-backed plan store (mavstack/mission_store.py): records, two slots, atomic
+"""The flash-backed plan store (mavstack/services/mission_store.py): records, two slots, atomic
 commit, corruption detection; and the exact float <-> fixed-point conversions of the
 seed's MISSION_ITEM. The kill test commits plans on MicroPython and SIGKILLs it at
 random moments, then boots the store after each kill."""
@@ -13,7 +13,7 @@ from fractions import Fraction
 from hypothesis import given, settings, strategies as st
 
 from conftest import FIRMWARE, MICROPYTHON, ROOT, run_mpy
-from mavstack.mission_store import HEADER_SIZE, RECORD_SIZE, MissionStore
+from mavstack.services.mission_store import HEADER_SIZE, RECORD_SIZE, MissionStore
 from mavstack.services import missions as service
 from mavstack.storage import Storage
 
@@ -305,6 +305,6 @@ def test_killed_at_random_points(tmp_path):
         last = _check_after_kill(path, last, size)
     assert kills >= 50 and mid >= 30, (kills, mid)
     # And the firmware boots with what is left.
-    r = run_mpy("from mavstack.mission_store import MissionStore\nfrom mavstack.storage import Storage\n"
+    r = run_mpy("from mavstack.services.mission_store import MissionStore\nfrom mavstack.storage import Storage\n"
                 "s = MissionStore(Storage(%r), 'mission', 0, 500)\nprint(s.corrupt, s.count)\n" % str(path))
     assert r.returncode == 0 and r.stdout.split()[0] == "False", r.stdout + r.stderr

@@ -33,7 +33,7 @@ import gc
 from ..compat import const, ticks_diff, ticks_add
 from ..fields import u16, i16, i32, f32_is_nan, f32_to_int
 from ..kernels import copy
-from ..mission_store import MissionStore, RECORD_SIZE
+from .mission_store import MissionStore, RECORD_SIZE
 
 # Loading this module from a .mpy leaves the loader's garbage between the code it
 # kept: collect it now, so that the class and tables below find room on a small heap.
@@ -714,7 +714,7 @@ def create(ep):
         commands=getattr(board, "MISSION_COMMANDS", ()),
     ))
     if ep.setting("MISSION_RUNNER", True):
-        from ..mission_runner import MissionRunner
+        from .mission_runner import MissionRunner
 
         MissionRunner(missions)
     return missions

@@ -31,9 +31,9 @@ import struct
 from ..compat import const, ticks_diff
 from ..fields import i16, cstr_len
 from ..kernels import copy
-from ..param_table import ParamTable, ID_LEN
-from ..param_table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32, READ_ONLY, REBOOT  # noqa: F401
-from ..param_table import UINT64, INT64, REAL64  # noqa: F401  (declaring one is an error)
+from .param_table import ParamTable, ID_LEN
+from .param_table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32, READ_ONLY, REBOOT  # noqa: F401
+from .param_table import UINT64, INT64, REAL64  # noqa: F401  (declaring one is an error)
 
 _MSG_PARAM_REQUEST_READ = const(20)
 _MSG_PARAM_REQUEST_LIST = const(21)

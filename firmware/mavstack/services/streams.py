@@ -43,7 +43,7 @@ import struct
 
 from ..compat import const, ticks_diff, ticks_add
 from ..fields import u16
-from ..telemetry import Telemetry
+from .telemetry import Telemetry
 
 _MSG_REQUEST_DATA_STREAM = const(66)
 _MSG_DATA_STREAM = const(67)

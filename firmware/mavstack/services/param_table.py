@@ -12,9 +12,9 @@ parameters added or removed keeps the values of those that remain.
 """
 import struct
 
-from .compat import const
-from .fields import u16, i16, u32, i32, f32_is_nan
-from .kernels import crc16, copy
+from ..compat import const
+from ..fields import u16, i16, u32, i32, f32_is_nan
+from ..kernels import crc16, copy
 
 # MAV_PARAM_TYPE
 UINT8 = const(1)

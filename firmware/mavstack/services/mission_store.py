@@ -19,8 +19,8 @@ the store corrupt: it is reported, wiped, and the vehicle starts with an empty p
 Staging and commit allocate nothing (the files stay open), so a transfer runs under
 micropython.heap_lock().
 """
-from .compat import const
-from .kernels import crc16
+from ..compat import const
+from ..kernels import crc16
 
 RECORD_SIZE = const(32)
 HEADER_SIZE = const(16)

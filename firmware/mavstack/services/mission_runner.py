@@ -27,8 +27,8 @@ Decoding an item makes floats: that happens once per item, not per tick.
 """
 import struct
 
-from .compat import const, ticks_diff
-from .fields import f32_to_int
+from ..compat import const, ticks_diff
+from ..fields import f32_to_int
 from .mission_store import RECORD_SIZE
 
 NO_MISSION = const(1)  # MISSION_STATE

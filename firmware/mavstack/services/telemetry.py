@@ -21,7 +21,7 @@ fills whichever the dialect defines.
 """
 import struct
 
-from .compat import const, ticks_diff
+from ..compat import const, ticks_diff
 
 _SYS_STATUS = const(1)
 _GPS_RAW_INT = const(24)
