@@ -18,7 +18,6 @@ import os
 import random
 import select
 import socket
-import subprocess
 import sys
 import tempfile
 import threading
@@ -26,17 +25,10 @@ import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "tests"))
+from vehicle import Vehicle  # noqa: E402
 BYTES_PER_S = 5760
 N = 500
 MISSION_IDS = (39, 40, 43, 44, 47, 51, 73)  # the transfer's own frames
-
-
-def _free_port():
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 def _msgid(data):
@@ -112,29 +104,6 @@ class Radio:
         self.veh_sock.close()
 
 
-def _vehicle(port, storage):
-    env = dict(os.environ)
-    env["MICROPYPATH"] = os.pathsep.join([os.path.join(ROOT, "firmware"), os.path.join(ROOT, "boards"), ".frozen"])
-    cmd = [os.path.join(ROOT, ".venv", "bin", "micropython"), os.path.join(ROOT, "firmware", "main.py"),
-           "--board", "unix", "--link", "udpin:127.0.0.1:%d" % port, "--storage", storage,
-           "--set", "udp_bytes_per_s=%d" % BYTES_PER_S]
-    return subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-
-
-def _connect(port):
-    os.environ["MAVLINK20"] = "1"
-    from pymavlink import mavutil
-
-    m = mavutil.mavlink_connection("udpout:127.0.0.1:%d" % port, source_system=255, source_component=190,
-                                   dialect="common")
-    deadline = time.time() + 20
-    while time.time() < deadline:
-        m.mav.heartbeat_send(6, 8, 0, 0, 0)
-        if m.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5) is not None:
-            return m
-    raise RuntimeError("no HEARTBEAT from the vehicle")
-
-
 def _transfer(radio, m, what, items):
     from mission_gcs import MissionClient, same
 
@@ -159,23 +128,20 @@ def run():
     out = {}
     items = plan(N, tag=1)
     for loss, runs in ((0.0, ("upload", "download")), (0.1, ("upload",))):
-        port = _free_port()
         with tempfile.TemporaryDirectory() as storage:
-            proc = _vehicle(port, storage)
-            radio = Radio(port, BYTES_PER_S, loss)
+            v = Vehicle(storage, args=["--set", "udp_bytes_per_s=%d" % BYTES_PER_S]).start()
+            radio = Radio(v.port, BYTES_PER_S, loss)
             try:
-                m = _connect(radio.port)
+                m = v.gcs(port=radio.port)
                 for what in runs:
                     seconds, bound = _transfer(radio, m, what, items)
                     key = "mission_%s_%d%s" % (what, N, "_lossy" if loss else "")
                     out[key + "_s"] = round(seconds, 2)
                     out[key + "_bound_s"] = round(bound, 2)
                     out[key + "_ratio"] = round(seconds / bound, 2)
-                m.close()
             finally:
+                v.stop()
                 radio.close()
-                proc.terminate()
-                proc.wait(10)
     return out
 
 

@@ -10,47 +10,14 @@ half the link (the rest stays free for telemetry and commands): expect ~2x the b
 """
 import json
 import os
-import socket
-import subprocess
 import sys
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+from vehicle import Vehicle  # noqa: E402
 BYTES_PER_S = 5760
 RUNS = 3
-
-
-def _free_port():
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
-def _start(port, storage):
-    env = dict(os.environ)
-    env["MICROPYPATH"] = os.pathsep.join(
-        [os.path.join(ROOT, "firmware"), os.path.join(ROOT, "boards"), ".frozen"])
-    cmd = [os.path.join(ROOT, ".venv", "bin", "micropython"), os.path.join(ROOT, "firmware", "main.py"),
-           "--board", "unix", "--link", "udpin:127.0.0.1:%d" % port, "--storage", storage,
-           "--set", "udp_bytes_per_s=%d" % BYTES_PER_S]
-    return subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-
-
-def _connect(port):
-    os.environ["MAVLINK20"] = "1"
-    from pymavlink import mavutil
-
-    m = mavutil.mavlink_connection("udpout:127.0.0.1:%d" % port, source_system=255,
-                                   source_component=190, dialect="common")
-    deadline = time.time() + 20
-    while time.time() < deadline:
-        m.mav.heartbeat_send(6, 8, 0, 0, 0)
-        hb = m.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5)
-        if hb is not None:
-            return m
-    raise RuntimeError("no HEARTBEAT from the vehicle")
 
 
 def _list_once(m):
@@ -74,20 +41,17 @@ def _list_once(m):
 def run():
     import tempfile
 
-    port = _free_port()
     with tempfile.TemporaryDirectory() as storage:
-        proc = _start(port, storage)
+        v = Vehicle(storage, args=["--set", "udp_bytes_per_s=%d" % BYTES_PER_S]).start()
         try:
-            m = _connect(port)
+            m = v.gcs()
             times = []
             for _ in range(RUNS):
                 seconds, wire, count = _list_once(m)
                 times.append(seconds)
                 time.sleep(0.2)
-            m.close()
         finally:
-            proc.terminate()
-            proc.wait(10)
+            v.stop()
     times.sort()
     seconds = times[len(times) // 2]
     bound = wire / BYTES_PER_S

@@ -13,11 +13,13 @@ unix vehicle, measured for 6 s by pymavlink over UDP from arrival times.
 """
 import json
 import os
-import socket
 import subprocess
+import sys
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+from vehicle import Vehicle  # noqa: E402
 MICROPYTHON = os.path.join(ROOT, ".venv", "bin", "micropython")
 STEADY = os.path.join(ROOT, "tests", "mpy", "streams_steady.py")
 STREAMS = {"ATTITUDE": (30, 50), "GLOBAL_POSITION_INT": (33, 20), "VFR_HUD": (74, 10), "SCALED_IMU": (26, 5)}
@@ -38,35 +40,13 @@ def sched_tick_us():
     return sorted(runs)[1]
 
 
-def _free_port():
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
-
-
 def rate_error_pct():
     import tempfile
 
-    os.environ["MAVLINK20"] = "1"
-    from pymavlink import mavutil
-
-    port = _free_port()
-    env = dict(os.environ)
-    env["MICROPYPATH"] = os.pathsep.join([os.path.join(ROOT, "firmware"), os.path.join(ROOT, "boards"), ".frozen"])
     with tempfile.TemporaryDirectory() as storage:
-        proc = subprocess.Popen([MICROPYTHON, os.path.join(ROOT, "firmware", "main.py"), "--board", "unix",
-                                 "--link", "udpin:127.0.0.1:%d" % port, "--storage", storage],
-                                cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        v = Vehicle(storage).start()
         try:
-            m = mavutil.mavlink_connection("udpout:127.0.0.1:%d" % port, source_system=255,
-                                           source_component=190, dialect="common")
-            deadline = time.time() + 20
-            while m.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5) is None:
-                if time.time() > deadline:
-                    raise RuntimeError("no HEARTBEAT from the vehicle")
-                m.mav.heartbeat_send(6, 8, 0, 0, 0)
+            m = v.gcs()
             for msgid, hz in STREAMS.values():
                 m.mav.command_long_send(1, 1, 511, 0, msgid, 1e6 / hz, 0, 0, 0, 0, 0)
                 if m.recv_match(type="COMMAND_ACK", blocking=True, timeout=5) is None:
@@ -82,10 +62,8 @@ def rate_error_pct():
                 msg = m.recv_match(blocking=True, timeout=0.05)
                 if msg is not None and msg.get_type() in times and time.time() > settle:
                     times[msg.get_type()].append(time.time())
-            m.close()
         finally:
-            proc.terminate()
-            proc.wait(10)
+            v.stop()
     worst = 0.0
     for name, (_, hz) in STREAMS.items():
         ts = times[name]

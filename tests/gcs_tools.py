@@ -1,7 +1,14 @@
 """Ground-station moves shared by the end-to-end tests (pymavlink against the unix vehicle)."""
+import os
+import queue
+import re
+import subprocess
+import threading
 import time
 
-from conftest import recv
+from conftest import PYTHON, ROOT, free_udp_port, recv
+
+MAVPROXY = os.path.join(ROOT, ".venv", "bin", "mavproxy.py")
 
 MAV_RESULT_ACCEPTED = 0
 MAV_RESULT_TEMPORARILY_REJECTED = 1
@@ -64,3 +71,52 @@ def request(m, msgid, timeout=5.0):
 
 def statustext(m, contains, timeout=5.0):
     return listen(m, "STATUSTEXT", timeout, lambda s: contains in s.text)
+
+
+def two_links(vehicle, *args):
+    """A vehicle with a link for the ground station under test and one for pymavlink."""
+    ports = free_udp_port(), free_udp_port()
+    v = vehicle(links=["udpin:127.0.0.1:%d" % p for p in ports], args=list(args))
+    return v, ports[0], v.gcs(port=ports[1])
+
+
+class MavProxy:
+    """MAVProxy as a user runs it, typing commands; its output read line by line."""
+
+    def __init__(self, port, tmp_path, modules):
+        cmd = [PYTHON, MAVPROXY, "--master=udpout:127.0.0.1:%d" % port,
+               "--default-modules=" + modules, "--state-basedir=%s" % tmp_path, "--no-state"]
+        self.proc = subprocess.Popen(cmd, cwd=str(tmp_path), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT, text=True)
+        self.lines = queue.Queue()
+        self.seen = []
+        threading.Thread(target=self._read, daemon=True).start()
+
+    def _read(self):
+        for line in self.proc.stdout:
+            self.lines.put(line)
+
+    def say(self, line):
+        self.proc.stdin.write(line + "\n")
+        self.proc.stdin.flush()
+
+    def expect(self, pattern, timeout=20):
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            try:
+                line = self.lines.get(timeout=0.2)
+            except queue.Empty:
+                continue
+            self.seen.append(line)
+            found = re.search(pattern, line)
+            if found:
+                return found
+        raise AssertionError("MAVProxy never printed %r:\n%s" % (pattern, "".join(self.seen)))
+
+    def close(self):
+        try:
+            self.proc.stdin.close()  # end of input: MAVProxy stops
+            self.proc.wait(10)
+        except (OSError, subprocess.TimeoutExpired):
+            self.proc.kill()
+            self.proc.wait()

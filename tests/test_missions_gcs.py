@@ -2,19 +2,12 @@
 and `wp list` with a QGC WPL 110 file, typed on its stdin; MAVSDK's MissionRaw upload
 and download (mission, geofence, rally). A pymavlink ground station on a second link
 checks what the vehicle holds afterwards."""
-import os
-import queue
-import re
-import subprocess
-import threading
-import time
-
 import pytest
 
-from conftest import PYTHON, ROOT, free_udp_port
+import gcs_tools
+from gcs_tools import MavProxy
 from mission_gcs import MissionClient
 
-MAVPROXY = os.path.join(ROOT, ".venv", "bin", "mavproxy.py")
 
 # index current frame command p1 p2 p3 p4 x y z autocontinue
 WPL = """QGC WPL 110
@@ -38,57 +31,14 @@ def _wpl_rows():
 
 
 def two_links(vehicle):
-    ports = free_udp_port(), free_udp_port()
-    v = vehicle(links=["udpin:127.0.0.1:%d" % p for p in ports])
-    return v, ports[0], MissionClient(v.gcs(port=ports[1]))
-
-
-class MavProxy:
-    """MAVProxy as a user runs it, typing commands; its output read line by line."""
-
-    def __init__(self, port, tmp_path):
-        cmd = [PYTHON, MAVPROXY, "--master=udpout:127.0.0.1:%d" % port, "--default-modules=wp",
-               "--state-basedir=%s" % tmp_path, "--no-state"]
-        self.proc = subprocess.Popen(cmd, cwd=str(tmp_path), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True)
-        self.lines = queue.Queue()
-        self.seen = []
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self):
-        for line in self.proc.stdout:
-            self.lines.put(line)
-
-    def say(self, line):
-        self.proc.stdin.write(line + "\n")
-        self.proc.stdin.flush()
-
-    def expect(self, pattern, timeout=20):
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            try:
-                line = self.lines.get(timeout=0.2)
-            except queue.Empty:
-                continue
-            self.seen.append(line)
-            found = re.search(pattern, line)
-            if found:
-                return found
-        raise AssertionError("MAVProxy never printed %r:\n%s" % (pattern, "".join(self.seen)))
-
-    def close(self):
-        try:
-            self.proc.stdin.close()  # end of input: MAVProxy stops
-            self.proc.wait(10)
-        except (OSError, subprocess.TimeoutExpired):
-            self.proc.kill()
-            self.proc.wait()
+    v, port, m = gcs_tools.two_links(vehicle)
+    return v, port, MissionClient(m)
 
 
 def test_mavproxy_wp_load_and_list(vehicle, tmp_path):
     v, port, check = two_links(vehicle)
     (tmp_path / "mission.txt").write_text(WPL)
-    mp = MavProxy(port, tmp_path)
+    mp = MavProxy(port, tmp_path, "wp")
     try:
         mp.expect(r"online system 1|Detected vehicle 1:1")
         mp.say("wp load mission.txt")

@@ -2,77 +2,23 @@
 stdin, and MAVSDK's Param plugin. A pymavlink ground station on a second link checks
 what the vehicle says afterwards."""
 import os
-import queue
-import re
-import subprocess
 import sys
-import threading
-import time
 
 import pytest
 
-from conftest import ROOT, PYTHON, free_udp_port, recv
+from conftest import ROOT, recv
+from gcs_tools import MavProxy, two_links
 
 sys.path.insert(0, os.path.join(ROOT, "boards"))
 import unix_params  # noqa: E402
 
 N = len(unix_params.PARAMS)
-MAVPROXY = os.path.join(ROOT, ".venv", "bin", "mavproxy.py")
-
-
-def two_links(vehicle, *args):
-    """A vehicle with a link for the ground station under test and one for pymavlink."""
-    ports = free_udp_port(), free_udp_port()
-    v = vehicle(links=["udpin:127.0.0.1:%d" % p for p in ports], args=list(args))
-    return v, ports[0], v.gcs(port=ports[1])
-
-
-class MavProxy:
-    """MAVProxy as a user runs it, typing commands; its output read line by line."""
-
-    def __init__(self, port, tmp_path):
-        cmd = [PYTHON, MAVPROXY, "--master=udpout:127.0.0.1:%d" % port,
-               "--default-modules=param,cmdlong", "--state-basedir=%s" % tmp_path, "--no-state"]
-        self.proc = subprocess.Popen(cmd, cwd=str(tmp_path), stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True)
-        self.lines = queue.Queue()
-        self.seen = []
-        threading.Thread(target=self._read, daemon=True).start()
-
-    def _read(self):
-        for line in self.proc.stdout:
-            self.lines.put(line)
-
-    def say(self, line):
-        self.proc.stdin.write(line + "\n")
-        self.proc.stdin.flush()
-
-    def expect(self, pattern, timeout=20):
-        deadline = time.time() + timeout
-        while time.time() < deadline:
-            try:
-                line = self.lines.get(timeout=0.2)
-            except queue.Empty:
-                continue
-            self.seen.append(line)
-            found = re.search(pattern, line)
-            if found:
-                return found
-        raise AssertionError("MAVProxy never printed %r:\n%s" % (pattern, "".join(self.seen)))
-
-    def close(self):
-        try:
-            self.proc.stdin.close()  # end of input: MAVProxy stops
-            self.proc.wait(10)
-        except (OSError, subprocess.TimeoutExpired):
-            self.proc.kill()
-            self.proc.wait()
 
 
 @pytest.mark.parametrize("encoding", ["bytewise", "c_cast"])
 def test_mavproxy_fetches_sets_and_commands(vehicle, tmp_path, encoding):
     v, port, check = two_links(vehicle, "--set", "param_encoding=" + encoding, "--set", "param_autosave_ms=0")
-    mp = MavProxy(port, tmp_path)
+    mp = MavProxy(port, tmp_path, "param,cmdlong")
     try:
         mp.expect(r"online system 1|Detected vehicle 1:1")
         mp.say("param fetch")
