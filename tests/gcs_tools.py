@@ -1,4 +1,5 @@
 """Ground-station moves shared by the end-to-end tests (pymavlink against the unix vehicle)."""
+import contextlib
 import os
 import queue
 import re
@@ -120,3 +121,18 @@ class MavProxy:
         except (OSError, subprocess.TimeoutExpired):
             self.proc.kill()
             self.proc.wait()
+
+
+@contextlib.contextmanager
+def mavsdk_system(port):
+    """MAVSDK as a ground station sending to the vehicle's udpin port: yields its System."""
+    import mavsdk
+
+    sdk = mavsdk.Mavsdk(mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION))
+    try:
+        sdk.add_any_connection("udpout://127.0.0.1:%d" % port)
+        system = sdk.first_autopilot(20.0)
+        assert system is not None, "MAVSDK found no autopilot"
+        yield system
+    finally:
+        sdk.destroy()

@@ -9,8 +9,8 @@ import pytest
 
 from conftest import ROOT, recv
 from gcs_tools import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_FAILED, MAV_RESULT_TEMPORARILY_REJECTED,
-                       MAV_RESULT_UNSUPPORTED, ack, command, listen, request, run, start, statustext,
-                       vehicle_heartbeat)
+                       MAV_RESULT_UNSUPPORTED, ack, command, listen, mavsdk_system, request, run, start,
+                       statustext, vehicle_heartbeat)
 
 sys.path.insert(0, os.path.join(ROOT, "tests", "mpy"))
 from harness import Bench  # noqa: E402
@@ -196,17 +196,12 @@ def _until(fn, timeout=10.0):
 
 
 def test_mavsdk_reads_version_arms_disarms_and_reboots(vehicle):
-    mavsdk = pytest.importorskip("mavsdk")
     from mavsdk.plugins.action import Action
     from mavsdk.plugins.info import Info
     from mavsdk.plugins.telemetry import Telemetry
 
     v = start(vehicle)
-    sdk = mavsdk.Mavsdk(mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION))
-    try:
-        sdk.add_any_connection("udpout://127.0.0.1:%d" % v.port)
-        system = sdk.first_autopilot(20.0)
-        assert system is not None, "MAVSDK found no autopilot"
+    with mavsdk_system(v.port) as system:
         version = _until(Info(system).get_version)  # AUTOPILOT_VERSION, asked for with REQUEST_MESSAGE
         assert (version.flight_sw_major, version.flight_sw_minor, version.flight_sw_patch) == (0, 1, 0)
         assert version.os_sw_major == 1
@@ -219,8 +214,6 @@ def test_mavsdk_reads_version_arms_disarms_and_reboots(vehicle):
         time.sleep(1.0)
         action.arm()  # the vehicle came back and answers
         assert _until(telemetry.armed)
-    finally:
-        sdk.destroy()
     assert v.proc.poll() is None
 
 

@@ -2,10 +2,8 @@
 and `wp list` with a QGC WPL 110 file, typed on its stdin; MAVSDK's MissionRaw upload
 and download (mission, geofence, rally). A pymavlink ground station on a second link
 checks what the vehicle holds afterwards."""
-import pytest
-
 import gcs_tools
-from gcs_tools import MavProxy
+from gcs_tools import MavProxy, mavsdk_system
 from mission_gcs import MissionClient
 
 
@@ -62,15 +60,10 @@ def test_mavproxy_wp_load_and_list(vehicle, tmp_path):
 
 
 def test_mavsdk_mission_raw(vehicle):
-    mavsdk = pytest.importorskip("mavsdk")
     from mavsdk.plugins.mission_raw import MissionItem, MissionRaw
 
     v, port, check = two_links(vehicle)
-    sdk = mavsdk.Mavsdk(mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION))
-    try:
-        sdk.add_any_connection("udpout://127.0.0.1:%d" % port)
-        system = sdk.first_autopilot(20.0)
-        assert system is not None, "MAVSDK found no autopilot"
+    with mavsdk_system(port) as system:
         raw = MissionRaw(system)
         items = [MissionItem(i, 6, 16, 1 if i == 0 else 0, 1, 0.0, 2.0, 0.0, float(i), 473977420 + 1000 * i,
                              85455940 - 500 * i, 10.0 + i, 0) for i in range(60)]
@@ -89,7 +82,5 @@ def test_mavsdk_mission_raw(vehicle):
         assert [(f.command, f.x) for f in raw.download_geofence()] == [(5001, f.x) for f in fence]
         assert [(r.command, r.y, r.z) for r in raw.download_rallypoints()] == [(5100, 85460000, 40.0)]
         assert len(raw.download_mission()) == 60  # the mission is untouched by the others
-    finally:
-        sdk.destroy()
     held = check.download()
     assert len(held) == 60 and held[59].x == 473977420 + 59000

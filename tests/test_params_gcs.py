@@ -7,7 +7,7 @@ import sys
 import pytest
 
 from conftest import ROOT, recv
-from gcs_tools import MavProxy, two_links
+from gcs_tools import MavProxy, two_links, mavsdk_system
 
 sys.path.insert(0, os.path.join(ROOT, "boards"))
 import unix_params  # noqa: E402
@@ -43,15 +43,10 @@ def test_mavproxy_fetches_sets_and_commands(vehicle, tmp_path, encoding):
 
 
 def test_mavsdk_gets_all_and_sets(vehicle):
-    mavsdk = pytest.importorskip("mavsdk")
     from mavsdk.plugins.param import Param
 
     v, port, check = two_links(vehicle)
-    sdk = mavsdk.Mavsdk(mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION))
-    try:
-        sdk.add_any_connection("udpout://127.0.0.1:%d" % port)
-        system = sdk.first_autopilot(20.0)
-        assert system is not None, "MAVSDK found no autopilot"
+    with mavsdk_system(port) as system:
         param = Param(system)
         every = param.get_all_params()
         ints = {p.name: p.value for p in every.int_params}
@@ -61,8 +56,6 @@ def test_mavsdk_gets_all_and_sets(vehicle):
         param.set_param_float("WP_SPEED", 7.25)
         param.set_param_int("BATT_LOW_MAH", 950)
         assert param.get_param_int("BATT_LOW_MAH") == 950
-    finally:
-        sdk.destroy()
     check.mav.param_request_read_send(1, 1, b"WP_SPEED", -1)
     assert recv(check, "PARAM_VALUE", 5, lambda m: m.param_id == "WP_SPEED").param_value == 7.25
     check.mav.param_request_read_send(1, 1, b"BATT_LOW_MAH", -1)

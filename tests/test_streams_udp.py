@@ -8,7 +8,7 @@ import time
 import pytest
 
 from conftest import free_udp_port, recv
-from gcs_tools import run, command, listen, MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED
+from gcs_tools import run, command, listen, MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, mavsdk_system
 
 SET_INTERVAL, GET_INTERVAL, REQUEST_MESSAGE = 511, 510, 512
 
@@ -252,15 +252,10 @@ def approx_g():
 
 
 def test_mavsdk_sets_rates_and_reads_telemetry(vehicle):
-    mavsdk = pytest.importorskip("mavsdk")
     from mavsdk.plugins.telemetry import Telemetry
 
     v = vehicle()
-    sdk = mavsdk.Mavsdk(mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION))
-    try:
-        sdk.add_any_connection("udpout://127.0.0.1:%d" % v.port)
-        system = sdk.first_autopilot(20.0)
-        assert system is not None, "MAVSDK found no autopilot"
+    with mavsdk_system(v.port) as system:
         tel = Telemetry(system)
         tel.set_rate_position(20.0)  # SET_MESSAGE_INTERVAL for GLOBAL_POSITION_INT; raises unless ACCEPTED
         stamps = []
@@ -268,8 +263,6 @@ def test_mavsdk_sets_rates_and_reads_telemetry(vehicle):
         tel.subscribe_position(lambda p, _: (stamps.append(time.time()), fixes.append(p)))
         time.sleep(3.0)
         gps = tel.gps_info()
-    finally:
-        sdk.destroy()
     assert abs(rate(stamps[len(stamps) // 3:]) - 20) <= 2  # after MAVSDK settled on the new rate
     assert abs(fixes[-1].latitude_deg - 47.397742) < 0.001 and abs(fixes[-1].longitude_deg - 8.545594) < 0.001
     assert gps.num_satellites == 12 and gps.fix_type >= 3  # FixType.FIX_3D
