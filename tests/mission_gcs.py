@@ -1,5 +1,5 @@
 """The ground-station side of the mission protocol for tests and benchmarks, on pymavlink:
-upload, download, clear and partial transfers with retries, plus a lossy UDP relay.
+upload, download, clear and partial transfers with retries (tests/relay.py has the lossy link).
 
     c = MissionClient(m)                       m: a pymavlink connection
     c.upload(items, mission_type=0) -> MISSION_ACK type, or None (no answer)
@@ -7,11 +7,6 @@ upload, download, clear and partial transfers with retries, plus a lossy UDP rel
     items are Item tuples (frame, command, current, autocontinue, p1, p2, p3, p4, x, y, z),
     with x, y ints (degrees * 1e7) in the int form, floats in the seed form (form="float").
 """
-import heapq
-import random
-import select
-import socket
-import threading
 import time
 from collections import namedtuple
 
@@ -190,83 +185,6 @@ class MissionClient:
             if msg is not None:
                 return msg.type
         return None
-
-
-class LossyRelay:
-    """A UDP relay between a ground station and a vehicle's udpin port that drops,
-    duplicates and delays (so reorders) datagrams, each MAVLink frame being one datagram.
-
-    A frame is disturbed with probability `rate`; a disturbed frame is dropped,
-    duplicated or held back `delay` seconds (one of the three at random), both ways.
-    The ground station talks to relay.port.
-    """
-
-    def __init__(self, vehicle_port, rate=0.2, delay=(0.001, 0.006), seed=1, drop_only=False):
-        self.rate = rate
-        self.delay = delay
-        self.drop_only = drop_only
-        self.rng = random.Random(seed)
-        self.gcs_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.gcs_sock.bind(("127.0.0.1", 0))
-        self.port = self.gcs_sock.getsockname()[1]
-        self.veh_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.veh_sock.bind(("127.0.0.1", 0))
-        self.vehicle = ("127.0.0.1", vehicle_port)
-        self.gcs = None
-        self.held = []  # (release time, n, socket, data, address)
-        self.n = 0
-        self.stats = {"frames": 0, "dropped": 0, "duplicated": 0, "delayed": 0}
-        self._stop = False
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-
-    def _forward(self, sock, data, addr):
-        self.stats["frames"] += 1
-        if self.rng.random() < self.rate:
-            what = 0 if self.drop_only else self.rng.randrange(3)
-            if what == 0:
-                self.stats["dropped"] += 1
-                return
-            if what == 1:
-                self.stats["duplicated"] += 1
-                sock.sendto(data, addr)
-            else:
-                self.stats["delayed"] += 1
-                self.n += 1
-                heapq.heappush(self.held, (time.time() + self.rng.uniform(*self.delay), self.n, sock, data, addr))
-                return
-        sock.sendto(data, addr)
-
-    def _run(self):
-        socks = [self.gcs_sock, self.veh_sock]
-        while not self._stop:
-            wait = 0.05
-            if self.held:
-                wait = max(0.0, min(wait, self.held[0][0] - time.time()))
-            ready, _, _ = select.select(socks, [], [], wait)
-            for s in ready:
-                try:
-                    data, addr = s.recvfrom(4096)
-                except OSError:
-                    continue
-                if s is self.gcs_sock:
-                    self.gcs = addr
-                    self._forward(self.veh_sock, data, self.vehicle)
-                elif self.gcs is not None:
-                    self._forward(self.gcs_sock, data, self.gcs)
-            now = time.time()
-            while self.held and self.held[0][0] <= now:
-                _, _, sock, data, addr = heapq.heappop(self.held)
-                try:
-                    sock.sendto(data, addr)
-                except OSError:
-                    pass
-
-    def close(self):
-        self._stop = True
-        self._thread.join(2)
-        self.gcs_sock.close()
-        self.veh_sock.close()
 
 
 def mavlink1(m):

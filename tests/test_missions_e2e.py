@@ -9,7 +9,8 @@ import time
 import pytest
 
 from conftest import free_udp_port, recv
-from mission_gcs import Item, LossyRelay, MissionClient, mavlink1, plan, same
+from mission_gcs import Item, MissionClient, mavlink1, plan, same
+from relay import LossyRelay
 
 ACCEPTED, UNSUPPORTED, DENIED, OPERATION_CANCELLED = 0, 3, 14, 15
 
