@@ -14,18 +14,14 @@ import sys
 
 import micropython
 
+import harness
 from harness import Bench
 
 sys.path.append("boards")
 import unix_params  # noqa: E402
 
 
-class Board:
-    NAME = "bench"
-    MAV_TYPE = 2
-    MAV_AUTOPILOT = 0
-    GCS_TIMEOUT_MS = 5000
-    OPERATOR_PASSKEY = None
+class Board(harness.Board):
     PARAMS = unix_params.PARAMS
 
 
