@@ -311,7 +311,7 @@ def test_commands(gcs_link):
 
 
 def test_watch_over_udpout(vehicle):
-    """The brief's way round: the vehicle listens (udpin), mavctl sends to it."""
+    """The other way round: the vehicle listens (udpin), mavctl sends to it."""
     v = vehicle()
     out = ok(mavctl_cli("udpout:127.0.0.1:%d" % v.port, "watch", "HEARTBEAT", "SYS_STATUS", "--seconds", "2"))
     lines = out.splitlines()
