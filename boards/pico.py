@@ -16,7 +16,7 @@ FENCE_CAPACITY = 50
 RALLY_CAPACITY = 10
 OPERATOR_PASSKEY = None
 GCS_TIMEOUT_MS = 5000
-RAM_BUDGET = 48 * 1024
+RAM_BUDGET = 128 * 1024  # of the ~190 KB heap MicroPython leaves on the RP2040
 
 
 def transports():

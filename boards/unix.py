@@ -17,7 +17,7 @@ FENCE_CAPACITY = 100
 RALLY_CAPACITY = 20
 OPERATOR_PASSKEY = None  # a string makes CHANGE_OPERATOR_CONTROL required to take control
 GCS_TIMEOUT_MS = 5000
-RAM_BUDGET = 256 * 1024
+RAM_BUDGET = 256 * 1024  # heap the vehicle may hold after start-up (main.py reports it)
 
 
 def transports():

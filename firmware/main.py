@@ -76,7 +76,20 @@ def build(board, opts):
         module = __import__("mavstack.services." + name, None, None, ("create",))
         module.create(ep)
     app = board.application(ep) if hasattr(board, "application") else None
+    _check_ram(ep, board)
     return ep, app
+
+
+def _check_ram(ep, board):
+    """Say how much heap the built vehicle holds, and warn when it is over the board's budget."""
+    if not hasattr(gc, "mem_alloc"):
+        return  # CPython
+    gc.collect()
+    used = gc.mem_alloc()
+    budget = getattr(board, "RAM_BUDGET", 0)
+    print("mavstack: %s ready, %d KB of heap in use (budget %d KB)" % (board.NAME, used >> 10, budget >> 10))
+    if budget and used > budget:
+        ep.statustext(4, "RAM: %d KB in use, budget %d KB" % (used >> 10, budget >> 10))
 
 
 def run(ep, app=None, period_ms=1):

@@ -7,7 +7,7 @@ Usage, allocation-free per frame:
 """
 from .compat import const
 from .kernels import crc16, crc_accumulate, copy, zero
-from .parser import STX_V1, STX_V2, HEADER_V1, HEADER_V2, FRAME_MAX
+from .parser import STX_V1, STX_V2, HEADER_V1, HEADER_V2, FRAME_MAX, IFLAG_SIGNED
 
 
 class Encoder:
@@ -17,6 +17,9 @@ class Encoder:
         self.buf = bytearray(FRAME_MAX)
         self.seq = 0
         self.frames = 0
+        # sign(buf, end) -> bytes appended after the CRC at buf[end], set by a signing
+        # service; MAVLink 2 frames are then flagged signed.
+        self.sign = None
 
     def begin(self):
         """Payload offset in buf; the caller packs the whole payload there."""
@@ -55,6 +58,8 @@ class Encoder:
             buf[7] = msgid & 0xFF
             buf[8] = (msgid >> 8) & 0xFF
             buf[9] = msgid >> 16
+            if self.sign is not None:
+                buf[2] = IFLAG_SIGNED
             end = HEADER_V2 + plen
         else:
             if msgid > 255:
@@ -72,6 +77,8 @@ class Encoder:
         buf[end + 1] = crc >> 8
         self.seq = (self.seq + 1) & 0xFF
         self.frames += 1
+        if self.sign is not None and self.version == 2:
+            return end + 2 + self.sign(buf, end + 2)
         return end + 2
 
     def clear(self, n):

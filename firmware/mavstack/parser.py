@@ -49,6 +49,9 @@ class Parser:
         self.compid = 0
         self.signed = False
         self.payload = self._payload_v2
+        # verify(buf, plen, signed) -> bool, set by a signing service: called with the
+        # frame still as on the wire (CRC in place); False drops it undelivered.
+        self.verify = None
         # Statistics.
         self.frames = 0
         self.crc_errors = 0
@@ -181,6 +184,8 @@ class Parser:
             self.signed = False
             self.payload = self._payload_v1
             start = HEADER_V1
+        if self.verify is not None and not self.verify(buf, plen, self.signed):
+            return
         full = info >> 16
         if plen < full:
             zero(buf, start + plen, start + full)

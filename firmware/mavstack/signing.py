@@ -1,0 +1,94 @@
+"""SHA-256 over preallocated buffers, and the MAVLink 2 frame signature built on it.
+
+Nothing here allocates once constructed, so frames can be signed and checked in the
+receive and transmit paths. The compression itself is kernels.sha256_block (viper or
+portable).
+
+    h = Sha256(); h.update(buf, start, end); ...; h.digest_into(out32)   (then reusable)
+    s = Signature(); s.compute(key32, frame, n, out, off)  -> 6 signature bytes at out[off]
+        over key + frame[0:n], where frame[0:n] is header, payload, CRC, link id, timestamp
+"""
+from .compat import const
+from .kernels import sha256_block, copy, zero
+
+_BLOCK = const(64)
+_H0 = b"\x6a\x09\xe6\x67\xbb\x67\xae\x85\x3c\x6e\xf3\x72\xa5\x4f\xf5\x3a\x51\x0e\x52\x7f\x9b\x05\x68\x8c\x1f\x83\xd9\xab\x5b\xe0\xcd\x19"
+SIGNATURE_BYTES = const(6)
+
+
+class Sha256:
+    def __init__(self):
+        self.state = bytearray(32)
+        self.block = bytearray(_BLOCK)
+        self.n = 0  # bytes waiting in block
+        self.total = 0  # bytes hashed so far
+        self.reset()
+
+    def reset(self):
+        copy(self.state, _H0, 0, 32)
+        self.n = 0
+        self.total = 0
+
+    def update(self, buf, start, end):
+        """Hash buf[start:end]."""
+        block = self.block
+        n = self.n
+        self.total += end - start
+        while start < end:
+            k = _BLOCK - n
+            if k > end - start:
+                k = end - start
+            copy(block, buf, n | start << 10, k)
+            n += k
+            start += k
+            if n == _BLOCK:
+                sha256_block(self.state, block)
+                n = 0
+        self.n = n
+
+    def digest_into(self, out):
+        """Write the 32-byte digest to out[0:32] and start over."""
+        block = self.block
+        n = self.n
+        bits = self.total << 3
+        block[n] = 0x80
+        n += 1
+        if n > _BLOCK - 8:
+            zero(block, n, _BLOCK)
+            sha256_block(self.state, block)
+            n = 0
+        zero(block, n, _BLOCK - 8)
+        for i in range(8):
+            block[_BLOCK - 1 - i] = bits & 0xFF
+            bits >>= 8
+        sha256_block(self.state, block)
+        copy(out, self.state, 0, 32)
+        self.reset()
+
+
+class Signature:
+    """MAVLink 2 signature: the first 6 bytes of SHA-256(secret key + frame)."""
+
+    def __init__(self):
+        self.sha = Sha256()
+        self.digest = bytearray(32)
+
+    def compute(self, key, frame, n, out, off):
+        sha = self.sha
+        sha.update(key, 0, 32)
+        sha.update(frame, 0, n)
+        sha.digest_into(self.digest)
+        copy(out, self.digest, off, SIGNATURE_BYTES)
+
+    def matches(self, key, frame, n):
+        """Do the 6 bytes at frame[n:n+6] sign key + frame[0:n]?"""
+        sha = self.sha
+        sha.update(key, 0, 32)
+        sha.update(frame, 0, n)
+        digest = self.digest
+        sha.digest_into(digest)
+        ok = True
+        for i in range(SIGNATURE_BYTES):
+            if digest[i] != frame[n + i]:
+                ok = False
+        return ok
