@@ -43,7 +43,7 @@ ARCH_BY_INDEX = (None, "x86", "x64", "armv6", "armv6m", "armv7m", "armv7em", "ar
                  "armv7emdp", "xtensa", "xtensawin", "rv32imc", "rv64imc")
 MPY_VERSION = 6
 MPY_SUB_VERSION = 3
-NATIVE_MODULES = ("bytes_viper.py",)  # hold @micropython.viper code
+NATIVE_MODULES = ("bytes_viper.py", "sha256_viper.py")  # hold @micropython.viper code
 _CONST = re.compile(r"^_?([A-Z][A-Z0-9_]*)\s*=\s*const\((\d+)\)", re.M)
 
 

@@ -1,4 +1,4 @@
-"""MAVLink 2 signing: the SHA-256 kernels against hashlib on every runtime, the signing
+"""MAVLink 2 signing: the SHA-256 kernels (viper, portable) against hashlib on every runtime, the signing
 service in-process with pymavlink (with its secret key) as the ground station and
 oracle, key persistence, and signed traffic under heap_lock() on MicroPython."""
 import hashlib
@@ -18,7 +18,7 @@ from harness import Bench  # noqa: E402
 from pymavlink.dialects.v20 import common as mav2  # noqa: E402
 
 from mavstack.parser import Parser  # noqa: E402
-from mavstack.signing import Sha256  # noqa: E402
+from mavstack.services.sha256 import Sha256  # noqa: E402
 
 KEY = bytes(range(1, 33))
 EPOCH_2015_US = 1420070400000000
@@ -26,11 +26,10 @@ EPOCH_2015_US = 1420070400000000
 SHA_SCRIPT = """
 import sys
 from binascii import hexlify, unhexlify
-from mavstack import kernels
-from mavstack.signing import Sha256
+from mavstack.services.sha256 import Sha256, SHA256_IMPL
 h = Sha256()
 out = bytearray(32)
-print(kernels.IMPL)
+print(SHA256_IMPL)
 for line in open(sys.argv[1]):
     hx, cut = line.split()
     data = unhexlify(hx) if hx != "-" else b""

@@ -11,15 +11,17 @@ from .parser import STX_V1, STX_V2, HEADER_V1, HEADER_V2, FRAME_MAX, IFLAG_SIGNE
 
 
 class Encoder:
+    # sign(buf, end) -> bytes appended after the CRC at buf[end], set on an instance by a
+    # signing service; MAVLink 2 frames are then flagged signed. A class attribute, so
+    # that encoders without one carry nothing extra.
+    sign = None
+
     def __init__(self, crc_len, version=2):
         self.crc_len = crc_len
         self.version = version
         self.buf = bytearray(FRAME_MAX)
         self.seq = 0
         self.frames = 0
-        # sign(buf, end) -> bytes appended after the CRC at buf[end], set by a signing
-        # service; MAVLink 2 frames are then flagged signed.
-        self.sign = None
 
     def begin(self):
         """Payload offset in buf; the caller packs the whole payload there."""

@@ -23,6 +23,11 @@ _SOURCES = const(8)  # senders tracked for sequence-gap loss figures
 
 
 class Parser:
+    # verify(buf, plen, signed) -> bool, set on an instance by a signing service: called
+    # with the frame still as on the wire (CRC in place); False drops it undelivered.
+    # A class attribute, so that parsers without one carry nothing extra.
+    verify = None
+
     def __init__(self, crc_len, on_frame):
         self.crc_len = crc_len  # dialect.CRC_LEN: id -> crc_extra | len1 << 8 | len2 << 16
         self.on_frame = on_frame  # called as on_frame(msgid, payload)
@@ -49,9 +54,6 @@ class Parser:
         self.compid = 0
         self.signed = False
         self.payload = self._payload_v2
-        # verify(buf, plen, signed) -> bool, set by a signing service: called with the
-        # frame still as on the wire (CRC in place); False drops it undelivered.
-        self.verify = None
         # Statistics.
         self.frames = 0
         self.crc_errors = 0

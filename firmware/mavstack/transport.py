@@ -1,4 +1,5 @@
-"""Byte transports a link runs over: UDP, a tty/pty, a board's UART.
+"""Byte transports a link runs over: UDP here; a tty/pty or a board's UART in
+transport_serial.py (loaded only where used, to spare a small board's heap).
 
 Every transport has the same small, non-blocking, allocation-free face:
     readinto(buf) -> bytes read (0 when none)
@@ -132,112 +133,6 @@ class UdpTransport:
             self._listen.close()
 
 
-class SerialTransport:
-    """A tty or pty on a unix host (MicroPython's unix port or CPython), raw mode.
-
-    Reads never wait: the terminal is set to return at once with what it has
-    (VMIN=0, VTIME=0). Writes are skipped while the device cannot take them.
-    """
-
-    def __init__(self, device, baud):
-        import termios
-
-        self.device = device
-        self.baud = baud
-        self.bytes_per_s = baud // 10  # 8N1: ten bit times a byte
-        self.name = "serial:%s:%d" % (device, baud)
-        if MICROPYTHON:
-            self._f = open(device, "r+b")
-            fd = self._f.fileno()
-        else:
-            import os
-
-            fd = os.open(device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
-            self._f = None
-        self.fd = fd
-        if MICROPYTHON:
-            termios.setraw(fd)
-        else:  # CPython keeps setraw in the tty module
-            import tty
-
-            tty.setraw(fd)
-        attr = termios.tcgetattr(fd)
-        attr[6][6] = 0  # VMIN
-        attr[6][5] = 0  # VTIME
-        speed = getattr(termios, "B%d" % baud, None)
-        if speed is not None:
-            attr[4] = attr[5] = speed
-        termios.tcsetattr(fd, termios.TCSANOW, attr)
-        import select
-
-        self._poll = select.poll()
-        self._poll.register(self._f if MICROPYTHON else fd, select.POLLOUT)
-        self._POLLOUT = select.POLLOUT
-
-    if MICROPYTHON:
-
-        def readinto(self, buf):
-            try:
-                return self._f.readinto(buf) or 0
-            except OSError:
-                return 0
-
-        def write(self, buf, n):
-            for _obj, ev in self._poll.ipoll(0):
-                if ev & self._POLLOUT:
-                    try:
-                        return self._f.write(buf, n) or 0
-                    except OSError:
-                        return 0
-            return 0
-
-    else:
-
-        def readinto(self, buf):
-            import os
-
-            try:
-                return os.readv(self.fd, [buf])
-            except OSError:
-                return 0
-
-        def write(self, buf, n):
-            import os
-
-            try:
-                return os.write(self.fd, memoryview(buf)[:n])
-            except OSError:
-                return 0
-
-    def close(self):
-        if self._f is not None:
-            self._f.close()
-        else:
-            import os
-
-            os.close(self.fd)
-
-
-class UartTransport:
-    """A board's machine.UART, created by the board profile."""
-
-    def __init__(self, uart, baud, name="uart"):
-        self.uart = uart
-        self.bytes_per_s = baud // 10
-        self.name = name
-
-    def readinto(self, buf):
-        if not self.uart.any():
-            return 0
-        return self.uart.readinto(buf) or 0
-
-    def write(self, buf, n):
-        return self.uart.write(buf, n) or 0
-
-    def close(self):
-        pass
-
-
 def open_transport(spec, udp_bytes_per_s=UDP_BYTES_PER_S):
     """Build a transport from udpout:HOST:PORT, udpin:ADDR:PORT or serial:DEVICE:BAUD."""
     kind, _, rest = spec.partition(":")
@@ -245,6 +140,8 @@ def open_transport(spec, udp_bytes_per_s=UDP_BYTES_PER_S):
         host, _, port = rest.rpartition(":")
         return UdpTransport(kind, host or "0.0.0.0", int(port), udp_bytes_per_s)
     if kind == "serial":
+        from .transport_serial import SerialTransport
+
         device, _, baud = rest.rpartition(":")
         return SerialTransport(device, int(baud))
     raise ValueError("link spec: udpout:HOST:PORT, udpin:ADDR:PORT or serial:DEVICE:BAUD")

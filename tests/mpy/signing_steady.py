@@ -7,9 +7,8 @@ bench checks, all between heap_lock() and heap_unlock() when LOCK is given.
 import sys
 
 from harness import Bench
-from mavstack import kernels
 from mavstack.encoder import Encoder
-from mavstack.signing import Signature
+from mavstack.services.sha256 import Signature, SHA256_IMPL
 
 try:
     import micropython
@@ -97,7 +96,7 @@ def main(n, lock):
     steady()
     if lock:
         micropython.heap_unlock()
-    print(kernels.IMPL, svc.accepted, svc.bad_signature, svc.replayed, svc.unsigned,
+    print(SHA256_IMPL, svc.accepted, svc.bad_signature, svc.replayed, svc.unsigned,
           b.seen[_PING] - pings, check.good, check.bad)
 
 

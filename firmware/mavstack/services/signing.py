@@ -32,8 +32,8 @@ import struct
 from ..compat import const, ticks_diff
 from ..kernels import copy
 from ..parser import HEADER_V2, SIGNATURE_LEN
-from ..signing import Signature
 from ..storage import checksum
+from .sha256 import Signature
 from .statustext import NOTICE, WARNING
 
 _MSG_RADIO_STATUS = const(109)

@@ -1,15 +1,27 @@
 """SHA-256 over preallocated buffers, and the MAVLink 2 frame signature built on it.
 
 Nothing here allocates once constructed, so frames can be signed and checked in the
-receive and transmit paths. The compression itself is kernels.sha256_block (viper or
-portable).
+receive and transmit paths. The compression is sha256_block from sha256_viper or
+sha256_portable, chosen like the byte kernels (kernels.IMPL, MAVSTACK_PORTABLE=1).
 
     h = Sha256(); h.update(buf, start, end); ...; h.digest_into(out32)   (then reusable)
     s = Signature(); s.compute(key32, frame, n, out, off)  -> 6 signature bytes at out[off]
         over key + frame[0:n], where frame[0:n] is header, payload, CRC, link id, timestamp
 """
-from .compat import const
-from .kernels import sha256_block, copy, zero
+from ..compat import const
+from ..kernels import IMPL, copy, zero
+
+# The same choice as the byte kernels: viper where they are viper, else portable.
+SHA256_IMPL = "portable"
+if IMPL == "viper":
+    try:
+        from .sha256_viper import sha256_block
+
+        SHA256_IMPL = "viper"
+    except Exception:  # machine code for another CPU
+        pass
+if SHA256_IMPL == "portable":
+    from .sha256_portable import sha256_block
 
 _BLOCK = const(64)
 _H0 = b"\x6a\x09\xe6\x67\xbb\x67\xae\x85\x3c\x6e\xf3\x72\xa5\x4f\xf5\x3a\x51\x0e\x52\x7f\x9b\x05\x68\x8c\x1f\x83\xd9\xab\x5b\xe0\xcd\x19"
