@@ -107,7 +107,9 @@ def _build_lean(out, flags=()):
         dest = out / "mpy" / rel
         dest.parent.mkdir(parents=True, exist_ok=True)
         cmd = [MPY_CROSS, *flags, "-o", str(dest), path]
-        if path.endswith("bytes_viper.py"):
+        with open(path) as f:
+            native = "@micropython.viper" in f.read()
+        if native:
             if arch is None:
                 continue  # kernels.py falls back to the portable ones
             cmd.insert(1, "-march=" + arch)
