@@ -106,7 +106,9 @@ def _build_lean(out, flags=()):
     for path, rel in jobs:
         dest = out / "mpy" / rel
         dest.parent.mkdir(parents=True, exist_ok=True)
-        cmd = [MPY_CROSS, *flags, "-o", str(dest), path]
+        # The source name is embedded (and interned on load): keep it short and the same
+        # wherever the repository is checked out, as flash.py does.
+        cmd = [MPY_CROSS, *flags, "-s", rel[:-4] + ".py", "-o", str(dest), path]
         with open(path) as f:
             native = "@micropython.viper" in f.read()
         if native:
