@@ -34,4 +34,5 @@ def reset():
 
 
 # parameters and default streams for a 57600 baud radio
+BOARD_MODULES = ("radio",)  # frozen with the profile (firmware/manifest.py)
 from radio import PARAMS, PARAM_ENCODING, PARAM_AUTOSAVE_MS, PARAM_SYSID, DEFAULT_STREAMS  # noqa: E402,F401

@@ -61,7 +61,10 @@ def build(board, opts):
     ep = Endpoint(dialect, sysid, getattr(board, "COMPID", 1))
     ep.board = board
     ep.options = opts.get("options", {})
-    ep.storage = Storage(opts.get("storage") or board.STORAGE)
+    if opts.get("storage") or not hasattr(board, "storage"):
+        ep.storage = Storage(opts.get("storage") or board.STORAGE)
+    else:
+        ep.storage = board.storage()  # a board without a filesystem (storage_ram.py)
     specs = opts.get("links") or []
     # --set udp_bytes_per_s=5760 makes UDP links pace themselves like a 57600 baud radio.
     udp_rate = ep.setting("UDP_BYTES_PER_S", 200000)
@@ -96,12 +99,30 @@ def run(ep, app=None, period_ms=1):
     # Sleeping through status.idle lets it measure the loop's load for SYS_STATUS.
     status = ep.services.get("status")
     idle = status.idle if status is not None else sleep_ms
-    while True:
-        now = ticks_ms()
-        ep.poll(now)
-        if app is not None:
-            app.tick(now)
-        idle(period_ms)
+    # HEAP_LOCK (--set heap_lock=1): the loop must not allocate, and a MemoryError
+    # says where it did.
+    lock = ep.setting("HEAP_LOCK", False) and hasattr(gc, "mem_alloc")
+    if lock:
+        import micropython
+
+        gc.collect()
+        micropython.heap_lock()
+    try:
+        while True:
+            now = ticks_ms()
+            ep.poll(now)
+            if app is not None:
+                app.tick(now)
+            idle(period_ms)
+    except MemoryError as e:
+        if lock:
+            micropython.heap_unlock()
+            print("mavstack: MemoryError with the heap locked")
+            sys.print_exception(e)
+        raise
+    finally:
+        if lock:
+            micropython.heap_unlock()
 
 
 def main(argv):

@@ -3,7 +3,10 @@
 The stack is written for MicroPython; on CPython (tests, host tools) the few
 MicroPython-only names get plain equivalents here.
 """
-import time
+try:
+    import time
+except ImportError:  # MicroPython's qemu port before 1.27: the clock is a timer (qemu.py)
+    time = None
 
 try:
     from micropython import const
@@ -18,8 +21,11 @@ except ImportError:
         return x
 
 
-if hasattr(time, "ticks_ms"):
+if time is None:
+    from .qemu import ticks_ms, ticks_us, ticks_diff, ticks_add, sleep_ms
+elif hasattr(time, "ticks_ms"):
     ticks_ms = time.ticks_ms
+    ticks_us = time.ticks_us
     ticks_diff = time.ticks_diff
     ticks_add = time.ticks_add
     sleep_ms = time.sleep_ms
@@ -30,6 +36,9 @@ else:
 
     def ticks_ms():
         return int(time.monotonic() * 1000) & (_TICKS_PERIOD - 1)
+
+    def ticks_us():
+        return int(time.perf_counter() * 1000000) & (_TICKS_PERIOD - 1)
 
     def ticks_add(t, delta):
         return (t + delta) & (_TICKS_PERIOD - 1)

@@ -3,6 +3,8 @@
 A reader never sees a half-written file: the data goes to NAME.new, is flushed,
 and only then renamed over NAME. On boot a leftover NAME.new is discarded.
 Callers add their own header and checksum (see checksum()) to detect a corrupt file.
+`size` (the most a file will hold) is for storage_ram.py, the same face for boards
+without a filesystem; files ignore it.
 """
 import os
 
@@ -39,7 +41,7 @@ class Storage:
     def exists(self, name):
         return _exists(self.path(name))
 
-    def open_new(self, name):
+    def open_new(self, name, size=None):
         """Open NAME.new for writing; commit(name) makes it NAME."""
         return open(self.path(name) + ".new", "wb")
 
@@ -57,7 +59,7 @@ class Storage:
         if _exists(self.path(name) + ".new"):
             os.remove(self.path(name) + ".new")
 
-    def open(self, name, mode="rb"):
+    def open(self, name, mode="rb", size=None):
         return open(self.path(name), mode)
 
     def remove(self, name):

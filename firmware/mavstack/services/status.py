@@ -31,21 +31,13 @@ the number of STATUSTEXTs dropped because the queue was full.
 import struct
 
 from .. import VERSION
-from ..compat import const, ticks_ms, ticks_diff, ticks_add, sleep_ms
+from ..compat import const, ticks_ms, ticks_us, ticks_diff, ticks_add, sleep_ms
 from ..endpoint import Reboot
 from ..fields import u32
 from ..kernels import copy
 from .statustext import TextQueue, CRITICAL, NOTICE, WARNING
 from .operator import Operator, on_change_operator_control
 from . import vehicle_commands
-
-try:
-    from time import ticks_us
-except ImportError:  # CPython
-    from time import perf_counter
-
-    def ticks_us():
-        return int(perf_counter() * 1000000) & 0x3FFFFFFF
 
 
 # MAV_STATE

@@ -1,0 +1,86 @@
+"""What the two emulated boards (qemu_m3, qemu_m0) share: the full service set, the
+unix vehicle's 100 parameters, storage in a RAM region outside the GC heap, the heap
+locked once the vehicle is up, and a stand-in application.
+
+The application is a vehicle standing still on the ground with working sensors: it
+writes ATTITUDE, GLOBAL_POSITION_INT, GPS_RAW_INT and VFR_HUD slots from values made
+once, so its ticks allocate nothing, as a real board's sensor code must not.
+"""
+from mavstack.compat import ticks_add, ticks_diff
+from mavstack.services.params import UINT32
+
+DIALECT = "common"
+SYSID = 1
+COMPID = 1
+MAV_TYPE = 10  # MAV_TYPE_GROUND_ROVER
+MAV_AUTOPILOT = 0
+SERVICES = ("status", "params", "commands", "missions", "streams", "signing")
+BAUD = 115200  # what the link budget assumes; the emulated UART is as fast as its pty
+MISSION_CAPACITY = 500
+FENCE_CAPACITY = 50
+RALLY_CAPACITY = 10
+OPERATOR_PASSKEY = None
+GCS_TIMEOUT_MS = 5000
+HEAP_LOCK = True  # main.py locks the heap once the vehicle is built: a MemoryError is a bug
+PARAM_ENCODING = "bytewise"
+PARAM_AUTOSAVE_MS = 0  # RAM storage: saved on PREFLIGHT_STORAGE only
+PARAM_SYSID = "MAV_SYS_ID"
+DEFAULT_STREAMS = (  # ten streams
+    (1, 1),  # SYS_STATUS
+    (42, 1),  # MISSION_CURRENT
+    (2, 1),  # SYSTEM_TIME
+    (24, 1),  # GPS_RAW_INT
+    (30, 4),  # ATTITUDE
+    (33, 2),  # GLOBAL_POSITION_INT
+    (74, 2),  # VFR_HUD
+    (147, 0.5),  # BATTERY_STATUS
+    (245, 0.5),  # EXTENDED_SYS_STATE
+    (242, 0.2),  # HOME_POSITION
+)
+
+from unix_params import PARAMS as _UNIX  # noqa: E402
+
+# The unix vehicle's table, with a uint32 that can hold values of 2^30 and more.
+PARAMS = tuple(p for p in _UNIX if p[0] != "BRD_SERIAL_NUM") + (("BRD_SERIAL_NUM", UINT32, 0),)
+
+
+def storage(address, size):
+    import uctypes
+    from mavstack.storage_ram import RamStorage
+
+    return RamStorage(uctypes.bytearray_at(address, size))
+
+
+def transports():
+    from mavstack.qemu import UartTransport
+
+    return [UartTransport(BAUD)]
+
+
+class StandingVehicle:
+    """On the ground at the home position, level, heading north, sensors healthy."""
+
+    LAT = 473977420  # 1e7 degrees
+    LON = 85455940
+    ALT_MM = 488000
+
+    def __init__(self, ep):
+        self.tm = getattr(ep, "telemetry", None)
+        status = ep.services.get("status")
+        if status is not None:
+            status.set_home(self.LAT, self.LON, self.ALT_MM)
+            status.set_sensors(0x3F, 0x3F, 0x3F)
+            status.set_battery(12600, 0, 100)
+        self._next = ep.now
+        self._zero = 0.0
+
+    def tick(self, now):
+        tm = self.tm
+        if tm is None or ticks_diff(now, self._next) < 0:
+            return
+        self._next = ticks_add(now, 50)  # 20 Hz, above any rate asked for
+        z = self._zero
+        tm.attitude(z, z, z, z, z, z)
+        tm.global_position(self.LAT, self.LON, self.ALT_MM, 0, 0, 0, 0, 0)
+        tm.gps_raw(3, self.LAT, self.LON, self.ALT_MM, 100, 100, 0, 0, 12)
+        tm.vfr_hud(z, z, 0, 0, z, z)

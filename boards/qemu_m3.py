@@ -1,0 +1,17 @@
+"""Emulated Cortex-M3 board: MicroPython's qemu port on QEMU's MPS2-AN385 (native
+emitter, so the viper kernels), 4 MB of RAM. REPL on UART 0, MAVLink on UART 1 (QEMU's
+second -serial). Built and run by mcu/firmware.py; settings shared with qemu_m0 in
+boards/qemu.py."""
+NAME = "qemu_m3"
+BOARD_MODULES = ("qemu", "unix_params")  # frozen with the profile (firmware/manifest.py)
+STORAGE = "ram"
+STORAGE_REGION = (0x00200000, 0x80000)  # 512 KB of RAM above the firmware's, below the stack
+RAM_BUDGET = 96 * 1024
+
+from qemu import *  # noqa: E402,F401,F403
+
+
+def storage():
+    import qemu
+
+    return qemu.storage(*STORAGE_REGION)

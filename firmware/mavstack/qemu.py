@@ -1,0 +1,207 @@
+"""Peripherals of the emulated boards (boards/qemu_m3.py, qemu_m0.py), driven through
+machine.mem32: MicroPython's qemu port has no `time` module (before 1.27) and no
+machine.UART, so the clock and the MAVLink UART are here.
+
+  MPS2-AN385 (Cortex-M3)  clock: CMSDK APB timer 0 at 25 MHz; MAVLink: CMSDK UART 1
+                          (QEMU's second -serial; the REPL keeps UART 0)
+  micro:bit (Cortex-M0)   clock: nRF51 TIMER0 at 31.25 kHz; MAVLink: the one UART,
+                          taken over from the REPL when the vehicle starts
+
+Every register value read here is below 2^30, so reading one never allocates on a
+32-bit port (a value at or above 2^30 would be a heap object there). The UART has a
+one-byte (CMSDK) or six-byte (nRF51) receive FIFO, so waiting (sleep_ms) drains it into
+a ring the way a receive interrupt would, and readinto() takes from that ring.
+"""
+import machine
+
+from .compat import const
+
+_mem32 = machine.mem32
+_MASK = const(0x3FFFFFFF)  # MicroPython's ticks period: 2^30
+_HALF = const(0x20000000)
+_PERIOD_M3 = const(1000000000)  # CMSDK timer counts a wrap: 40 s at 25 MHz, below 2^30
+_KHZ_M3 = const(25000)  # its counts a ms
+_PERIOD_M0 = const(0x1000000)  # nRF51 timer in 24-bit mode: a wrap is 537 s of 32 us counts
+
+# SCB CPUID (the same address on every Cortex-M): part number 0xC20 is a Cortex-M0.
+MODEL = "m0" if (_mem32[0xE000ED00] >> 4) & 0xFFF == 0xC20 else "m3"
+
+if MODEL == "m3":
+    _TIMER = 0x40000000  # CMSDK APB timer 0: counts down from RELOAD at 25 MHz
+    _VALUE = 0x40000004
+    _mem32[0x40000008] = _PERIOD_M3 - 1  # RELOAD
+    _mem32[_VALUE] = _PERIOD_M3 - 1
+    _mem32[_TIMER] = 1  # CTRL: enable
+    _UART = 0x40005000  # CMSDK APB UART 1: DATA, STATE (+4), CTRL (+8), BAUDDIV (+16)
+    _UART_STATE = 0x40005004
+else:
+    _TIMER = 0x40008000  # nRF51 TIMER0, counting up; CAPTURE[0] copies it into CC[0]
+    _CAPTURE = 0x40008040
+    _VALUE = 0x40008540
+    _mem32[0x40008504] = 0  # MODE: timer
+    _mem32[0x40008508] = 2  # BITMODE: 24 bit
+    _mem32[0x40008510] = 9  # PRESCALER: 16 MHz / 2^9
+    _mem32[0x4000800C] = 1  # TASKS_CLEAR
+    _mem32[_TIMER] = 1  # TASKS_START
+    _UART = 0x40002000  # nRF51 UART0: RXDRDY +0x108, RXD +0x518, TXD +0x51C, TXDRDY +0x11C
+
+
+class _Clock:
+    """Milliseconds since boot, wrapped like time.ticks_ms(), from the counter's deltas."""
+
+    def __init__(self):
+        self.last = self.read()
+        self.sub = 0  # counts (M3) or microseconds (M0) not yet a whole ms
+        self.ms = 0
+        self.us = 0
+
+    if MODEL == "m3":
+
+        def read(self):
+            return _mem32[_VALUE]
+
+        def update(self):
+            v = _mem32[_VALUE]
+            d = self.last - v  # counting down
+            if d < 0:
+                d += _PERIOD_M3
+            self.last = v
+            self.us = (self.us + d // 25) & _MASK
+            sub = self.sub + d
+            self.ms = (self.ms + sub // _KHZ_M3) & _MASK
+            self.sub = sub % _KHZ_M3
+            return self.ms
+
+    else:
+
+        def read(self):
+            _mem32[_CAPTURE] = 1
+            return _mem32[_VALUE]
+
+        def update(self):
+            _mem32[_CAPTURE] = 1
+            v = _mem32[_VALUE]
+            d = v - self.last  # counting up, 24 bits
+            if d < 0:
+                d += _PERIOD_M0
+            self.last = v
+            d <<= 5  # 32 us a count (< 2^29)
+            self.us = (self.us + d) & _MASK
+            sub = self.sub + d
+            self.ms = (self.ms + sub // 1000) & _MASK
+            self.sub = sub % 1000
+            return self.ms
+
+
+_clock = _Clock()
+_uarts = []  # the transports whose FIFOs sleep_ms drains
+
+
+def ticks_ms():
+    return _clock.update()
+
+
+def ticks_us():
+    _clock.update()
+    return _clock.us
+
+
+def ticks_add(t, delta):
+    return (t + delta) & _MASK
+
+
+def ticks_diff(a, b):
+    return ((a - b + _HALF) & _MASK) - _HALF
+
+
+def sleep_ms(ms):
+    end = ticks_add(_clock.update(), ms)
+    while True:
+        for u in _uarts:
+            u.drain()
+        if ticks_diff(end, _clock.update()) <= 0:
+            return
+
+
+class UartTransport:
+    """The board's MAVLink UART as a transport (readinto/write/bytes_per_s/name/close).
+
+    bytes_per_s is what the link budget assumes (the emulated UART itself is as fast
+    as the pty): the baud rate a real radio link would have, / 10 for 8N1.
+    """
+
+    def __init__(self, baud=57600, ring=2048):
+        self.bytes_per_s = baud // 10
+        self.name = "uart-" + MODEL
+        self._ring = bytearray(ring)
+        self._head = 0
+        self._count = 0
+        self.overruns = 0
+        if MODEL == "m3":
+            _mem32[_UART + 16] = 16  # BAUDDIV (QEMU wants >= 16 to pass data)
+            _mem32[_UART + 8] = 3  # CTRL: TX and RX enabled
+        _uarts.append(self)
+
+    if MODEL == "m3":
+
+        def drain(self):
+            ring = self._ring
+            size = len(ring)
+            while _mem32[_UART_STATE] & 2:  # RXFULL
+                b = _mem32[_UART]
+                if self._count == size:
+                    self.overruns += 1
+                    continue
+                ring[(self._head + self._count) % size] = b
+                self._count += 1
+
+        def _put(self, b):
+            for _ in range(10000):  # TXFULL clears as soon as QEMU's pty takes the byte
+                if not _mem32[_UART_STATE] & 1:
+                    _mem32[_UART] = b
+                    return True
+            return False
+
+    else:
+
+        def drain(self):
+            ring = self._ring
+            size = len(ring)
+            while _mem32[_UART + 0x108]:  # RXDRDY
+                _mem32[_UART + 0x108] = 0
+                b = _mem32[_UART + 0x518]
+                if self._count == size:
+                    self.overruns += 1
+                    continue
+                ring[(self._head + self._count) % size] = b
+                self._count += 1
+
+        def _put(self, b):
+            _mem32[_UART + 0x51C] = b  # QEMU's nRF51 UART sends at once
+            return True
+
+    def readinto(self, buf):
+        self.drain()
+        n = self._count
+        if n > len(buf):
+            n = len(buf)
+        ring = self._ring
+        size = len(ring)
+        h = self._head
+        for i in range(n):
+            buf[i] = ring[h]
+            h += 1
+            if h == size:
+                h = 0
+        self._head = h
+        self._count -= n
+        return n
+
+    def write(self, buf, n):
+        for i in range(n):
+            if not self._put(buf[i]):
+                return i
+        return n
+
+    def close(self):
+        pass

@@ -1,0 +1,255 @@
+"""Storage for a board without a filesystem: files in one fixed memory region.
+
+Same face as storage.Storage (exists, open, open_new, commit, discard_new, remove), so
+parameters, missions and signing keep their code. The region is a bytearray the board
+hands over: on the emulated boards a RAM area outside the GC heap
+(uctypes.bytearray_at), which survives a soft reset but not power-off; on a real board
+the same scheme fits a reserved flash area behind a write-through buffer.
+
+Layout: a 16-byte header (magic, directory size, entries in use), a directory of
+32-byte entries, then the file data. An entry: name (16 bytes, NUL-padded), u32 offset
+of area A (B follows it), u32 capacity of each, u24 length of A, u8 current area, u24
+length of B, u8 flags (exists, two areas). A file replaced with
+open_new/commit is written into the area not in use and becomes the file when commit
+flips the byte, so a reader never sees half a write. Areas are handed out once, when a
+file is first created, at the capacity the creator names (size=), or DEFAULT_SIZE;
+files made by open() (written in place, like the mission slots) get one area only.
+
+Nothing here allocates after a file's first open: handles are made once per file and
+reused, reads and writes copy bytes in place, so saves run under heap_lock().
+"""
+from .compat import const
+
+_MAGIC = b"MSRS"
+_HEADER = const(16)
+_ENTRY = const(32)
+_NAME = const(16)
+DEFAULT_SIZE = const(1024)
+_EXISTS = const(1)  # entry byte 31
+_TWO = const(2)  # has areas A and B (made by open_new)
+
+
+def _u32(b, o):
+    return b[o] | b[o + 1] << 8 | b[o + 2] << 16 | b[o + 3] << 24
+
+
+def _put32(b, o, v):
+    b[o] = v & 0xFF
+    b[o + 1] = (v >> 8) & 0xFF
+    b[o + 2] = (v >> 16) & 0xFF
+    b[o + 3] = (v >> 24) & 0xFF
+
+
+class RamFile:
+    """A handle on one area of a file: seek, readinto, read, write, flush, close.
+
+    write() past the capacity writes what fits and returns the count, like a full disk.
+    """
+
+    def __init__(self, storage, entry, area):
+        self.st = storage
+        self.entry = entry
+        self.area = area
+        self.pos = 0
+
+    def _base(self):
+        return self.st.area_base(self.entry, self.area)
+
+    def seek(self, pos, whence=0):
+        if whence == 2:
+            pos += self.st.length(self.entry, self.area)
+        self.pos = pos
+        return pos
+
+    def tell(self):
+        return self.pos
+
+    def readinto(self, buf, n=-1):
+        st = self.st
+        avail = st.length(self.entry, self.area) - self.pos
+        if n < 0 or n > len(buf):
+            n = len(buf)
+        if n > avail:
+            n = avail if avail > 0 else 0
+        mem = st.mem
+        s = self._base() + self.pos
+        for i in range(n):
+            buf[i] = mem[s + i]
+        self.pos += n
+        return n
+
+    def read(self, n=-1):
+        avail = self.st.length(self.entry, self.area) - self.pos
+        buf = bytearray(avail if n < 0 or n > avail else n)
+        self.readinto(buf)
+        return bytes(buf)
+
+    def write(self, buf, n=-1):
+        st = self.st
+        if n < 0:
+            n = len(buf)
+        room = st.capacity(self.entry) - self.pos
+        if n > room:
+            n = room if room > 0 else 0
+        mem = st.mem
+        d = self._base() + self.pos
+        for i in range(n):
+            mem[d + i] = buf[i]
+        self.pos += n
+        if self.pos > st.length(self.entry, self.area):
+            st.set_length(self.entry, self.area, self.pos)
+        return n
+
+    def flush(self):
+        pass
+
+    def close(self):
+        self.pos = 0
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class RamStorage:
+    def __init__(self, region, max_files=12):
+        self.mem = region
+        self.root = "ram"
+        self.max_files = max_files
+        self._data = _HEADER + _ENTRY * max_files
+        self._index = {}  # name -> entry number
+        self._handles = {}  # (name, area) -> RamFile, made once
+        mem = region
+        if mem[0:4] != _MAGIC or mem[4] != max_files:
+            self.format()
+        for e in range(mem[5]):
+            o = _HEADER + _ENTRY * e
+            n = 0
+            while n < _NAME and mem[o + n]:
+                n += 1
+            self._index[bytes(mem[o:o + n]).decode()] = e
+
+    def format(self):
+        """Empty the region's directory (the data areas are reused from the start)."""
+        mem = self.mem
+        for i in range(self._data):
+            mem[i] = 0
+        mem[0:4] = _MAGIC
+        mem[4] = self.max_files
+        self._index = {}
+        self._handles = {}
+
+    # --- entries ------------------------------------------------------------------
+    def _entry(self, e):
+        return _HEADER + _ENTRY * e
+
+    def area_base(self, e, area):
+        o = self._entry(e)
+        return _u32(self.mem, o + 16) + area * _u32(self.mem, o + 20)
+
+    def capacity(self, e):
+        return _u32(self.mem, self._entry(e) + 20)
+
+    def length(self, e, area):
+        o = self._entry(e) + 24 + 4 * area
+        mem = self.mem
+        return mem[o] | mem[o + 1] << 8 | mem[o + 2] << 16
+
+    def set_length(self, e, area, n):
+        o = self._entry(e) + 24 + 4 * area
+        mem = self.mem
+        mem[o] = n & 0xFF
+        mem[o + 1] = (n >> 8) & 0xFF
+        mem[o + 2] = n >> 16
+
+    def _current(self, e):
+        return self.mem[self._entry(e) + 27]
+
+    def used(self):
+        """Bytes of the region handed out so far."""
+        end = self._data
+        for e in range(self.mem[5]):
+            o = self._entry(e)
+            top = _u32(self.mem, o + 16) + _u32(self.mem, o + 20) * (2 if self.mem[o + 31] & _TWO else 1)
+            if top > end:
+                end = top
+        return end
+
+    def _create(self, name, size, areas):
+        mem = self.mem
+        e = mem[5]
+        raw = name.encode()
+        if e >= self.max_files or len(raw) > _NAME:
+            raise OSError(28)  # ENOSPC
+        base = self.used()
+        if base + areas * size > len(mem):
+            raise OSError(28)
+        o = self._entry(e)
+        for i in range(_ENTRY):
+            mem[o + i] = 0
+        for i in range(len(raw)):
+            mem[o + i] = raw[i]
+        _put32(mem, o + 16, base)
+        _put32(mem, o + 20, size)
+        mem[o + 31] = _TWO if areas == 2 else 0
+        mem[5] = e + 1
+        self._index[name] = e
+        return e
+
+    def _handle(self, name, area):
+        key = (name, area)
+        h = self._handles.get(key)
+        if h is None:
+            h = self._handles[key] = RamFile(self, self._index[name], area)
+        h.pos = 0
+        return h
+
+    # --- the Storage face ---------------------------------------------------------
+    def path(self, name):
+        return "ram:" + name
+
+    def exists(self, name):
+        e = self._index.get(name)
+        return e is not None and self.mem[self._entry(e) + 31] & _EXISTS != 0
+
+    def open(self, name, mode="rb", size=DEFAULT_SIZE):
+        e = self._index.get(name)
+        if e is None:
+            if "r" in mode and "+" not in mode:
+                raise OSError(2)  # ENOENT
+            e = self._create(name, size, 1)
+        h = self._handle(name, self._current(e))
+        if "w" in mode:
+            self.set_length(e, h.area, 0)
+        self.mem[self._entry(e) + 31] |= _EXISTS
+        return h
+
+    def open_new(self, name, size=DEFAULT_SIZE):
+        """A handle on the area not in use; commit(name) makes it the file."""
+        e = self._index.get(name)
+        if e is None:
+            e = self._create(name, size, 2)
+        elif not self.mem[self._entry(e) + 31] & _TWO:
+            raise OSError(22)  # EINVAL: made by open(), it has one area
+        h = self._handle(name, 1 - self._current(e))
+        self.set_length(e, h.area, 0)
+        return h
+
+    def commit(self, name):
+        e = self._index[name]
+        o = self._entry(e)
+        self.mem[o + 27] = 1 - self.mem[o + 27]
+        self.mem[o + 31] |= _EXISTS
+
+    def discard_new(self, name):
+        e = self._index.get(name)
+        if e is not None:
+            self.set_length(e, 1 - self._current(e), 0)
+
+    def remove(self, name):
+        e = self._index.get(name)
+        if e is not None:
+            self.set_length(e, self._current(e), 0)
+            self.mem[self._entry(e) + 31] &= ~_EXISTS

@@ -1,0 +1,196 @@
+"""The emulated microcontrollers: MicroPython's qemu port built with mavstack frozen in,
+and run under qemu-system-arm with its UARTs on ptys.
+
+    python mcu/firmware.py build [qemu_m3|qemu_m0 ...] [--heap-kb N]   build the firmware
+    python mcu/firmware.py repl qemu_m3                                 a REPL on the board
+
+MicroPython's source is Debian's source package `micropython` (1.25.0 in trixie: its
+ports/qemu, .mpy format 6.3 like ours), fetched with plain `apt-get source` through a
+deb-src entry made from this machine's own Debian apt entries, into build/mcu/. The
+toolchain and emulator are Debian's too (`make mcu-deps` installs them).
+
+Two boards, each a real board profile in boards/:
+  qemu_m3  MPS2-AN385, Cortex-M3, native emitter (viper kernels); REPL on UART0,
+           MAVLink on UART1 (QEMU's second -serial)
+  qemu_m0  micro:bit with flash and RAM raised, Cortex-M0, no native emitter
+           (portable kernels); one UART: the REPL until the vehicle starts, then MAVLink
+"""
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BUILD = os.path.join(ROOT, "build", "mcu")
+SUITE = "trixie"  # the Debian suite whose source package we build (micropython 1.25.0)
+VERSION = "1.25.0"
+PACKAGE = "micropython=1.25.0+ds-1"  # pinned: the exact Debian source package
+DEFAULT_HEAP_KB = 96
+
+# board profile -> (qemu port BOARD, qemu machine arguments, frozen viper kernels?)
+BOARDS = {
+    "qemu_m3": ("MPS2_AN385", ["-machine", "mps2-an385"], True),
+    "qemu_m0": ("MICROBIT", ["-machine", "microbit", "-global", "nrf51-soc.flash-size=1048576",
+                             "-global", "nrf51-soc.sram-size=262144"], False),
+}
+
+
+def _sh(cmd, **kw):
+    kw.setdefault("check", True)
+    return subprocess.run(cmd, **kw)
+
+
+def tools_missing():
+    """What the stage needs and this machine lacks (empty: all there)."""
+    need = ("arm-none-eabi-gcc", "qemu-system-arm")
+    missing = [t for t in need if shutil.which(t) is None]
+    if not os.path.exists("/usr/lib/arm-none-eabi/newlib") and not os.path.exists("/usr/lib/arm-none-eabi/lib"):
+        missing.append("libnewlib-arm-none-eabi")
+    return missing
+
+
+def _deb_src_entry():
+    """A deb-src entry for SUITE built from the machine's own Debian apt entries."""
+    sources = "/etc/apt/sources.list.d/debian.sources"
+    if os.path.exists(sources):
+        text = open(sources).read()
+        for stanza in text.split("\n\n"):
+            uri = re.search(r"^URIs:\s*(\S+)", stanza, re.M)
+            if uri and "security" not in uri.group(1):
+                key = re.search(r"^Signed-By:\s*(\S+)", stanza, re.M)
+                return ("Types: deb-src\nURIs: %s\nSuites: %s\nComponents: main\n%s"
+                        % (uri.group(1), SUITE, "Signed-By: %s\n" % key.group(1) if key else ""))
+    for line in open("/etc/apt/sources.list") if os.path.exists("/etc/apt/sources.list") else ():
+        words = line.split()
+        if len(words) >= 3 and words[0] == "deb" and "security" not in words[1]:
+            uri = words[2] if words[1].startswith("[") else words[1]
+            return "Types: deb-src\nURIs: %s\nSuites: %s\nComponents: main\n" % (uri, SUITE)
+    raise SystemExit("mcu: no Debian apt entry on this machine to fetch MicroPython's source from")
+
+
+def source_dir():
+    """MicroPython's source tree, fetched once."""
+    src = os.path.join(BUILD, "src", "micropython-" + VERSION)
+    if os.path.exists(os.path.join(src, "ports", "qemu", "Makefile")):
+        return src
+    apt = os.path.join(BUILD, "apt")
+    for d in ("parts", "lists/partial", "cache/archives/partial"):
+        os.makedirs(os.path.join(apt, d), exist_ok=True)
+    with open(os.path.join(apt, "parts", "micropython-src.sources"), "w") as f:
+        f.write(_deb_src_entry())
+    # A private apt state: the machine's own lists and sources stay as they are.
+    opts = ["-o", "Dir::Etc::SourceList=/dev/null", "-o", "Dir::Etc::SourceParts=" + apt + "/parts",
+            "-o", "Dir::State::Lists=" + apt + "/lists", "-o", "Dir::Cache=" + apt + "/cache",
+            "-o", "APT::Sandbox::User=root"]
+    _sh(["apt-get", "-q"] + opts + ["update"], stdout=subprocess.DEVNULL)
+    dl = os.path.join(BUILD, "src")
+    os.makedirs(dl, exist_ok=True)
+    _sh(["apt-get", "-q"] + opts + ["source", "--download-only", PACKAGE], cwd=dl,
+        stdout=subprocess.DEVNULL)
+    orig = [n for n in os.listdir(dl) if n.startswith("micropython_" + VERSION) and ".orig.tar" in n]
+    if not orig:
+        raise SystemExit("mcu: apt-get source gave no micropython %s tarball" % VERSION)
+    _sh(["tar", "xf", orig[0]], cwd=dl)
+    # The +ds tarball leaves out micropython-lib; the build only checks it is there.
+    lib = os.path.join(src, "lib", "micropython-lib")
+    os.makedirs(lib, exist_ok=True)
+    open(os.path.join(lib, "README.md"), "a").close()
+    return src
+
+
+def elf_path(board, heap_kb=DEFAULT_HEAP_KB, frozen=True):
+    return os.path.join(BUILD, "%s-%dk%s.elf" % (board, heap_kb, "" if frozen else "-plain"))
+
+
+def build(board, heap_kb=DEFAULT_HEAP_KB, frozen=True, manifest=None, quiet=True):
+    """Build the firmware for a board profile -> path of its ELF (cached by heap size).
+
+    frozen=False builds the plain firmware (nothing frozen), for the flash figure;
+    manifest overrides firmware/manifest.py (tests freeze their scripts in as well).
+    """
+    port_board, _machine, native = BOARDS[board]
+    out = elf_path(board, heap_kb, frozen) if manifest is None else manifest[:-3] + "-%s-%dk.elf" % (board, heap_kb)
+    src = source_dir()
+    tag = "%s-%s" % (board, "frozen" if frozen else "plain") if manifest is None else "%s-%s" % (
+        board, os.path.basename(manifest)[:-3])
+    bdir = os.path.join(BUILD, "obj-" + tag)
+    inputs = _manifest_inputs(manifest) if frozen else []
+    if os.path.exists(out) and all(os.path.getmtime(p) <= os.path.getmtime(out) for p in inputs):
+        return out
+    # The heap size is a compile-time constant of main.c: rebuild that object when it changes.
+    stamp = os.path.join(bdir, "heap_kb")
+    if os.path.exists(stamp) and open(stamp).read() != str(heap_kb):
+        for obj in ("main.o", "main.P"):
+            if os.path.exists(os.path.join(bdir, obj)):
+                os.remove(os.path.join(bdir, obj))
+    os.makedirs(bdir, exist_ok=True)
+    with open(stamp, "w") as f:
+        f.write(str(heap_kb))
+    if not os.path.exists(os.path.join(src, "mpy-cross", "build", "mpy-cross")):
+        # Built on its own first: the port's make would pass our BUILD= down to it.
+        _sh(["make", "-C", os.path.join(src, "mpy-cross"), "-j%d" % (os.cpu_count() or 2)],
+            capture_output=quiet)
+    env = dict(os.environ, MAVSTACK_BOARD=board, MAVSTACK_NATIVE="1" if native else "0")
+    cmd = ["make", "-C", os.path.join(src, "ports", "qemu"), "-j%d" % (os.cpu_count() or 2),
+           "BOARD=" + port_board, "BUILD=" + bdir, "MICROPY_HEAP_SIZE=%d" % (heap_kb * 1024)]
+    if frozen:
+        cmd.append("FROZEN_MANIFEST=" + (manifest or os.path.join(ROOT, "firmware", "manifest.py")))
+    else:
+        cmd.append("FROZEN_MANIFEST=")
+    r = subprocess.run(cmd, env=env, capture_output=quiet, text=True)
+    if r.returncode:
+        sys.stderr.write((r.stdout or "")[-4000:] + (r.stderr or "")[-4000:])
+        raise RuntimeError("mcu: firmware build failed for %s" % board)
+    shutil.copyfile(os.path.join(bdir, "firmware.elf"), out)
+    return out
+
+
+def _manifest_inputs(manifest):
+    """Files whose change means a rebuild: the stack, the boards, the manifests."""
+    paths = [os.path.join(ROOT, "firmware", "manifest.py"), os.path.abspath(__file__)]
+    if manifest:
+        paths.append(manifest)
+    for top in ("firmware", "boards") + ((os.path.dirname(manifest),) if manifest else ()):
+        for d, _subdirs, files in os.walk(os.path.join(ROOT, top)):
+            paths += [os.path.join(d, n) for n in files if n.endswith(".py")]
+    return paths
+
+
+def flash_kb(elf):
+    """Size of the firmware image (text + data) in KB."""
+    r = _sh(["arm-none-eabi-size", elf], capture_output=True, text=True)
+    text, data = r.stdout.splitlines()[1].split()[:2]
+    return (int(text) + int(data)) / 1024
+
+
+def qemu_command(board, elf, serials):
+    """qemu-system-arm for a board with the given -serial backends (first: UART0)."""
+    _port_board, machine, _native = BOARDS[board]
+    cmd = ["qemu-system-arm"] + machine + ["-nographic", "-monitor", "none", "-semihosting",
+                                           "-kernel", elf]
+    for s in serials:
+        cmd += ["-serial", s]
+    return cmd
+
+
+def main(argv):
+    if not argv or argv[0] not in ("build", "repl"):
+        raise SystemExit(__doc__)
+    heap = DEFAULT_HEAP_KB
+    if "--heap-kb" in argv:
+        heap = int(argv[argv.index("--heap-kb") + 1])
+    boards = [a for a in argv[1:] if a in BOARDS] or list(BOARDS)
+    if argv[0] == "build":
+        for b in boards:
+            t = time.time()
+            elf = build(b, heap)
+            print("%s: %s (%.0f KB, %.0f s)" % (b, elf, flash_kb(elf), time.time() - t))
+    else:
+        elf = build(boards[0], heap)
+        os.execvp("qemu-system-arm", qemu_command(boards[0], elf, ["mon:stdio"]))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
