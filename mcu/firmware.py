@@ -134,7 +134,9 @@ def build(board, heap_kb=DEFAULT_HEAP_KB, frozen=True, manifest=None, quiet=True
             capture_output=quiet)
     env = dict(os.environ, MAVSTACK_BOARD=board, MAVSTACK_NATIVE="1" if native else "0")
     cmd = ["make", "-C", os.path.join(src, "ports", "qemu"), "-j%d" % (os.cpu_count() or 2),
-           "BOARD=" + port_board, "BUILD=" + bdir, "MICROPY_HEAP_SIZE=%d" % (heap_kb * 1024)]
+           "BOARD=" + port_board, "BUILD=" + bdir, "MICROPY_HEAP_SIZE=%d" % (heap_kb * 1024),
+           # Room for a traceback when the heap is locked: a MemoryError then says where.
+           "CFLAGS_EXTRA=-DMICROPY_EMERGENCY_EXCEPTION_BUF_SIZE=256"]
     if frozen:
         cmd.append("FROZEN_MANIFEST=" + (manifest or os.path.join(ROOT, "firmware", "manifest.py")))
     else:

@@ -1,0 +1,5 @@
+# The test firmware: the board's frozen vehicle (firmware/manifest.py) plus the
+# library the MicroPython-side test scripts import (tests/mpy/harness.py); the scripts
+# themselves are sent over the raw REPL (tests/mcu_rig.py).
+include("../../firmware/manifest.py")
+module("harness.py", base_path="../mpy")
