@@ -6,7 +6,7 @@ test can run the steady state between micropython.heap_lock() and heap_unlock().
     import sys; sys.path.insert(0, "tests/mpy")   (run_mpy(..., path=[TESTS_MPY]) does it)
     from harness import Bench
     b = Bench(services=("status", "commands"), board=None, options=None, storage=None,
-              sysid=1, version=2, app=None)
+              sysid=1, version=2, app=None)   storage: a directory, or "ram" for storage_ram
     b.ep                         the Endpoint; its link 0 is the in-memory loop
     b.gcs(255, 190)              a Gcs frame builder for ground station sysid 255, compid 190
     f = g.frame(msgid, *fields)  a whole frame (bytearray), payload fields in FMT (wire) order;
@@ -171,14 +171,18 @@ class Gcs:
 
 class Bench:
     def __init__(self, services=("status", "commands"), board=None, options=None, storage=None,
-                 sysid=1, compid=1, version=2, app=None, dialect=None, ring=8192):
+                 sysid=1, compid=1, version=2, app=None, dialect=None, ring=8192, ram_storage_kb=48):
         if dialect is None:
             from mavstack.dialects import common as dialect
         self.dialect = dialect
         ep = Endpoint(dialect, sysid, compid)
         ep.board = board if board is not None else Board
         ep.options = options or {}
-        if storage is not None:
+        if storage == "ram":  # files in memory (storage_ram.py), as on the emulated boards
+            from mavstack.storage_ram import RamStorage
+
+            ep.storage = RamStorage(bytearray(ram_storage_kb * 1024))
+        elif storage is not None:
             from mavstack.storage import Storage
 
             ep.storage = Storage(storage)
