@@ -24,6 +24,9 @@ test can run the steady state between micropython.heap_lock() and heap_unlock().
     b.watch = fn(msgid, payload) called for every vehicle frame (tests that inspect fields)
     b.rx                         the Parser reading the vehicle's output (its version, sysid)
 
+    heap_requests(fn, *args)     bytes fn requested from the heap, unlocked (mem_total) and
+                                 locked (heap_lock): every hot-path test's check
+
 LoopTransport is the transport face (readinto/write/bytes_per_s/name/close) over two
 Ring buffers; Bench uses one pair, tests may add more links with loop_pair().
 """
@@ -40,6 +43,34 @@ _MSG_HEARTBEAT = 0
 _MSG_COMMAND_INT = 75
 _MSG_COMMAND_LONG = 76
 _MSG_COMMAND_ACK = 77
+
+
+def heap_requests(fn, *args):
+    """Run fn(*args) twice and return the bytes it requested from the heap (0 passes).
+
+    First unlocked, counted with micropython.mem_total(): that sees the frame states the
+    VM puts on the heap for functions with many locals, which under heap_lock() silently
+    fall back to the C stack. Then under heap_lock(), where any other allocation is a
+    MemoryError. fn must leave the state as it found it, or be fine to run again.
+    On CPython, or a port without mem_total, fn runs once and 0 is returned.
+    """
+    try:
+        import micropython
+    except ImportError:
+        fn(*args)
+        return 0
+    if not hasattr(micropython, "mem_total"):
+        fn(*args)
+        return 0
+    before = micropython.mem_total()
+    fn(*args)
+    requested = micropython.mem_total() - before
+    micropython.heap_lock()
+    try:
+        fn(*args)
+    finally:
+        micropython.heap_unlock()
+    return requested
 
 
 class Ring:
