@@ -109,7 +109,17 @@ def build(board, heap_kb=DEFAULT_HEAP_KB, frozen=True, manifest=None, quiet=True
 
     frozen=False builds the plain firmware (nothing frozen), for the flash figure;
     manifest overrides firmware/manifest.py (tests freeze their scripts in as well).
+    One build at a time (a lock file): test processes may ask at once.
     """
+    import fcntl
+
+    os.makedirs(BUILD, exist_ok=True)
+    with open(os.path.join(BUILD, ".lock"), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        return _build(board, heap_kb, frozen, manifest, quiet)
+
+
+def _build(board, heap_kb, frozen, manifest, quiet):
     port_board, _machine, native = BOARDS[board]
     out = elf_path(board, heap_kb, frozen) if manifest is None else manifest[:-3] + "-%s-%dk.elf" % (board, heap_kb)
     src = source_dir()
