@@ -121,7 +121,9 @@ def build(board, heap_kb=DEFAULT_HEAP_KB, frozen=True, manifest=None, quiet=True
 
 def _build(board, heap_kb, frozen, manifest, quiet):
     port_board, _machine, native = BOARDS[board]
-    out = elf_path(board, heap_kb, frozen) if manifest is None else manifest[:-3] + "-%s-%dk.elf" % (board, heap_kb)
+    out = elf_path(board, heap_kb, frozen)
+    if manifest is not None:
+        out = out[:-4] + "-" + os.path.basename(os.path.dirname(manifest)) + ".elf"
     src = source_dir()
     tag = "%s-%s" % (board, "frozen" if frozen else "plain") if manifest is None else "%s-%s" % (
         board, os.path.basename(manifest)[:-3])
