@@ -11,6 +11,7 @@ import sys
 from mavstack.compat import ticks_ms, sleep_ms
 from mavstack.endpoint import Endpoint, Reboot
 from mavstack.storage import Storage
+from mavstack.uptime import Clock
 from mavstack.transport import open_transport
 
 
@@ -61,6 +62,9 @@ def build(board, opts):
     ep = Endpoint(dialect, sysid, getattr(board, "COMPID", 1))
     ep.board = board
     ep.options = opts.get("options", {})
+    offset = ep.setting("UPTIME_OFFSET_MS", 0)  # tests: start late, to see uptimes past 2^30
+    if offset:
+        ep.clock = Clock(ep.now, offset)
     if opts.get("storage") or not hasattr(board, "storage"):
         ep.storage = Storage(opts.get("storage") or board.STORAGE)
     else:

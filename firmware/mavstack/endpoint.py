@@ -6,6 +6,7 @@ ids it handles with `on()`, and, if it has periodic work, a `tick(now_ms)`.
 """
 from .compat import ticks_ms
 from .link import Link
+from .uptime import Clock
 
 
 class Reboot(Exception):
@@ -19,6 +20,7 @@ class Endpoint:
         self.compid = compid
         self.links = []
         self.now = ticks_ms()
+        self.clock = Clock(self.now)  # uptime and time of day, as bytes (uptime.py)
         self._handlers = {}  # msgid -> [handler(link, payload), ...]
         self._tickers = []
         self.services = {}
@@ -100,6 +102,7 @@ class Endpoint:
         self.now = now
         for link in self.links:
             link.poll()
+        self.clock.advance(now)
         for svc in self._tickers:
             svc.tick(now)
 

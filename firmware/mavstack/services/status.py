@@ -128,11 +128,7 @@ class Status:
         self._home_changed = False
         self._one = 1.0  # quaternion w, made once
         # Clock
-        self.uptime_ms = 0
-        self._last_ms = ticks_ms()
-        self._clock_usec = 0  # unix time at _clock_at (uptime ms), 0: unknown
-        self._clock_at = 0
-        self._clock_from_app = False
+        self._clock_from_app = False  # the time of day came from the application (ep.clock)
         # Load and link figures, per window
         self._win_us = ticks_us()
         self._idle_us = 0
@@ -155,7 +151,6 @@ class Status:
     def attach(self, ep):
         self.ep = ep
         now = ep.now
-        self._last_ms = now
         self._next_period = now
         self._next_text = now
         self._links_changed()
@@ -283,15 +278,17 @@ class Status:
         self.battery_remaining = remaining
 
     def set_clock(self, unix_usec):
-        """The time of day, from an RTC or GPS; until then SYSTEM_TIME says 0 (unknown)."""
-        self._clock_usec = unix_usec
-        self._clock_at = self.uptime_ms
+        """The time of day, from an RTC or GPS; until then SYSTEM_TIME says 0 (unknown).
+        (An int: call it at start-up or rarely; ep.clock.set_unix takes bytes.)"""
+        self.ep.clock.set_unix(unix_usec.to_bytes(8, "little"))
         self._clock_from_app = True
 
     def unix_usec(self):
-        if not self._clock_usec:
-            return 0
-        return self._clock_usec + (self.uptime_ms - self._clock_at) * 1000
+        return self.ep.clock.unix_usec()
+
+    @property
+    def uptime_ms(self):
+        return self.ep.clock.uptime_ms()
 
     def statustext(self, severity, text):
         self.texts.put(severity, text)
@@ -320,8 +317,6 @@ class Status:
     # --- periodic work --------------------------------------------------------
     def tick(self, now):
         ep = self.ep
-        self.uptime_ms += ticks_diff(now, self._last_ms)
-        self._last_ms = now
         if not self._initialised:
             self._initialised = True
             self._update()
@@ -425,10 +420,7 @@ class Status:
         # A ground station's clock is better than none; the application's wins.
         if self._clock_from_app:
             return
-        usec = u32(p, 0) | u32(p, 4) << 32
-        if usec:
-            self._clock_usec = usec
-            self._clock_at = self.uptime_ms
+        self.ep.clock.set_unix(p, 0)
 
     def _on_set_mode(self, link, p):
         if p[4] != self.ep.sysid:
@@ -458,7 +450,9 @@ class Status:
 
     def send_system_time(self, link):
         off = link.begin()
-        struct.pack_into("<QI", link.txbuf, off, self.unix_usec(), self.uptime_ms & 0xFFFFFFFF)
+        clock = self.ep.clock
+        clock.stamp_unix(link.txbuf, off)
+        clock.stamp_ms(link.txbuf, off + 8)
         return link.send(_MSG_SYSTEM_TIME)
 
     def send_autopilot_version(self, link):

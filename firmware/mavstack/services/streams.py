@@ -279,7 +279,6 @@ class Streams:
     # --- the scheduler (every tick; allocation-free) -------------------------------
 
     def tick(self, now):
-        self.telemetry.clock(now)
         if len(self.links) != len(self.ep.links):
             self._sync_links(now)
         d = ticks_diff(now, self._rescale_at)

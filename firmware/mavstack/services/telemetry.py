@@ -21,7 +21,7 @@ fills whichever the dialect defines.
 """
 import struct
 
-from ..compat import const, ticks_diff
+from ..compat import const
 
 _SYS_STATUS = const(1)
 _GPS_RAW_INT = const(24)
@@ -174,22 +174,21 @@ class Telemetry:
         self._named_float = g(_NAMED_VALUE_FLOAT)
         self._named_int = g(_NAMED_VALUE_INT)
         self._debug = g(_DEBUG)
-        # Uptime, advanced by clock(now) from the scheduler's tick: wrap-safe and
-        # as fine-grained as the main loop.
-        self.uptime_ms = 0
-        self.time_boot_ms = 0  # uptime as the uint32 the messages carry
-        self._last = ep.now
+        # time_boot_ms / time_usec: stamped as bytes from the endpoint's clock (uptime.py)
+        self.clock = ep.clock
         # The battery as SYS_STATUS reports it (-1: unknown).
         self.voltage_mv = 0xFFFF
         self.current_ca = -1
         self.remaining = -1
 
-    def clock(self, now):
-        d = ticks_diff(now, self._last)
-        self._last = now
-        if d > 0:
-            self.uptime_ms += d
-            self.time_boot_ms = self.uptime_ms & 0xFFFFFFFF
+    # As ints, for applications and tests (heap objects past 2^30 on a 32-bit board).
+    @property
+    def uptime_ms(self):
+        return self.clock.uptime_ms()
+
+    @property
+    def time_boot_ms(self):
+        return self.clock.uptime_ms() & 0xFFFFFFFF
 
     def written(self, msgid):
         slot = self.slots.get(msgid)
@@ -200,25 +199,29 @@ class Telemetry:
     def attitude(self, roll, pitch, yaw, rollspeed, pitchspeed, yawspeed):
         """ATTITUDE: rad, rad/s."""
         s = self._attitude
-        struct.pack_into(s.base, s.buf, 0, self.time_boot_ms, roll, pitch, yaw, rollspeed, pitchspeed, yawspeed)
+        struct.pack_into(s.base, s.buf, 0, 0, roll, pitch, yaw, rollspeed, pitchspeed, yawspeed)
+        self.clock.stamp_ms(s.buf, 0)
         s.written = True
 
     def attitude_quaternion(self, q1, q2, q3, q4, rollspeed, pitchspeed, yawspeed):
         """ATTITUDE_QUATERNION: w, x, y, z; rad/s."""
         s = self._quaternion
-        struct.pack_into(s.base, s.buf, 0, self.time_boot_ms, q1, q2, q3, q4, rollspeed, pitchspeed, yawspeed)
+        struct.pack_into(s.base, s.buf, 0, 0, q1, q2, q3, q4, rollspeed, pitchspeed, yawspeed)
+        self.clock.stamp_ms(s.buf, 0)
         s.written = True
 
     def global_position(self, lat, lon, alt, relative_alt, vx, vy, vz, hdg):
         """GLOBAL_POSITION_INT: degE7, degE7, mm (MSL), mm (above home), cm/s NED, cdeg (65535 unknown)."""
         s = self._global
-        struct.pack_into(s.base, s.buf, 0, self.time_boot_ms, lat, lon, alt, relative_alt, vx, vy, vz, hdg)
+        struct.pack_into(s.base, s.buf, 0, 0, lat, lon, alt, relative_alt, vx, vy, vz, hdg)
+        self.clock.stamp_ms(s.buf, 0)
         s.written = True
 
     def local_position(self, x, y, z, vx, vy, vz):
         """LOCAL_POSITION_NED: m, m/s."""
         s = self._local
-        struct.pack_into(s.base, s.buf, 0, self.time_boot_ms, x, y, z, vx, vy, vz)
+        struct.pack_into(s.base, s.buf, 0, 0, x, y, z, vx, vy, vz)
+        self.clock.stamp_ms(s.buf, 0)
         s.written = True
 
     def gps_raw(self, fix_type, lat, lon, alt, eph, epv, vel, cog, satellites_visible,
@@ -226,8 +229,9 @@ class Telemetry:
         """GPS_RAW_INT: GPS_FIX_TYPE, degE7, degE7, mm, HDOP*100, VDOP*100, cm/s, cdeg, count;
         the accuracies (mm, mm/s, degE5) and yaw (cdeg) where the dialect has them."""
         s = self._gps_raw
-        struct.pack_into(s.base, s.buf, 0, self.uptime_ms * 1000, lat, lon, alt, eph, epv, vel, cog,
+        struct.pack_into(s.base, s.buf, 0, 0, lat, lon, alt, eph, epv, vel, cog,
                          fix_type, satellites_visible)
+        self.clock.stamp_us(s.buf, 0)
         if s.ext is not None:
             struct.pack_into(s.ext, s.buf, s.ext_off, alt_ellipsoid, h_acc, v_acc, vel_acc, hdg_acc, yaw)
         s.written = True
@@ -253,34 +257,39 @@ class Telemetry:
     def scaled_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag):
         """SCALED_IMU: mG, mrad/s, mgauss."""
         s = self._scaled_imu
-        struct.pack_into(s.base, s.buf, 0, self.time_boot_ms, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag)
+        struct.pack_into(s.base, s.buf, 0, 0, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag)
+        self.clock.stamp_ms(s.buf, 0)
         s.written = True
 
     def raw_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag):
         """RAW_IMU: the sensors' raw counts."""
         s = self._raw_imu
-        struct.pack_into(s.base, s.buf, 0, self.uptime_ms * 1000, xacc, yacc, zacc, xgyro, ygyro, zgyro,
+        struct.pack_into(s.base, s.buf, 0, 0, xacc, yacc, zacc, xgyro, ygyro, zgyro,
                          xmag, ymag, zmag)
+        self.clock.stamp_us(s.buf, 0)
         s.written = True
 
     def raw_pressure(self, press_abs, press_diff1, press_diff2, temperature):
         """RAW_PRESSURE: raw counts."""
         s = self._raw_pressure
-        struct.pack_into(s.base, s.buf, 0, self.uptime_ms * 1000, press_abs, press_diff1, press_diff2, temperature)
+        struct.pack_into(s.base, s.buf, 0, 0, press_abs, press_diff1, press_diff2, temperature)
+        self.clock.stamp_us(s.buf, 0)
         s.written = True
 
     def scaled_pressure(self, press_abs, press_diff, temperature):
         """SCALED_PRESSURE: hPa, hPa, cdegC."""
         s = self._scaled_pressure
-        struct.pack_into(s.base, s.buf, 0, self.time_boot_ms, press_abs, press_diff, temperature)
+        struct.pack_into(s.base, s.buf, 0, 0, press_abs, press_diff, temperature)
+        self.clock.stamp_ms(s.buf, 0)
         s.written = True
 
     def highres_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag,
                     abs_pressure, diff_pressure, pressure_alt, temperature, fields_updated):
         """HIGHRES_IMU: m/s/s, rad/s, gauss, hPa, hPa, m, degC, HIGHRES_IMU_UPDATED_FLAGS."""
         s = self._highres
-        struct.pack_into(s.base, s.buf, 0, self.uptime_ms * 1000, xacc, yacc, zacc, xgyro, ygyro, zgyro,
+        struct.pack_into(s.base, s.buf, 0, 0, xacc, yacc, zacc, xgyro, ygyro, zgyro,
                          xmag, ymag, zmag, abs_pressure, diff_pressure, pressure_alt, temperature, fields_updated)
+        self.clock.stamp_us(s.buf, 0)
         s.written = True
 
     def rc_channels(self, chans, rssi=255):
@@ -288,11 +297,10 @@ class Telemetry:
         (the first 8), RC_CHANNELS_SCALED (1000..2000 us as -10000..10000) and, where
         the dialect has it, RC_CHANNELS with all of them. rssi 0..254, 255 unknown."""
         n = len(chans)
-        t = self.time_boot_ms
         raw = self._rc_raw
         scaled = self._rc_scaled
-        struct.pack_into("<I", raw.buf, 0, t)
-        struct.pack_into("<I", scaled.buf, 0, t)
+        self.clock.stamp_ms(raw.buf, 0)
+        self.clock.stamp_ms(scaled.buf, 0)
         for i in range(8):
             if i < n:
                 v = chans[i]
@@ -308,7 +316,7 @@ class Telemetry:
         raw.written = scaled.written = True
         rc = self._rc
         if rc is not None:
-            struct.pack_into("<I", rc.buf, 0, t)
+            self.clock.stamp_ms(rc.buf, 0)
             for i in range(18):
                 struct.pack_into("<H", rc.buf, 4 + 2 * i, chans[i] if i < n else _UNUSED_U16)
             rc.buf[40] = n if n < 18 else 18
@@ -321,7 +329,7 @@ class Telemetry:
         s = self._servo
         b = s.buf
         n = len(outputs)
-        struct.pack_into("<I", b, 0, self.uptime_ms * 1000 & 0xFFFFFFFF)
+        self.clock.stamp_us32(b, 0)
         for i in range(8):
             struct.pack_into("<H", b, 4 + 2 * i, outputs[i] if i < n else 0)
         b[20] = port
@@ -348,8 +356,9 @@ class Telemetry:
                      ground_distance, flow_rate_x=0.0, flow_rate_y=0.0):
         """OPTICAL_FLOW: dpix, dpix, m/s, m/s, 0..255, m; rad/s where the dialect has them."""
         s = self._flow
-        struct.pack_into(s.base, s.buf, 0, self.uptime_ms * 1000, flow_comp_m_x, flow_comp_m_y,
+        struct.pack_into(s.base, s.buf, 0, 0, flow_comp_m_x, flow_comp_m_y,
                          ground_distance, flow_x, flow_y, sensor_id, quality)
+        self.clock.stamp_us(s.buf, 0)
         if s.ext is not None:
             struct.pack_into(s.ext, s.buf, s.ext_off, flow_rate_x, flow_rate_y)
         s.written = True
@@ -412,23 +421,29 @@ class Telemetry:
     def named_value_float(self, name, value):
         """NAMED_VALUE_FLOAT: name as bytes, up to 10 (each name is sent in turn)."""
         s = self._named_float
-        struct.pack_into(s.base, s.find(name), 0, self.time_boot_ms, value, name)
+        buf = s.find(name)
+        struct.pack_into(s.base, buf, 0, 0, value, name)
+        self.clock.stamp_ms(buf, 0)
         s.written = True
 
     def named_value_int(self, name, value):
         """NAMED_VALUE_INT: name as bytes, up to 10; int32 value."""
         s = self._named_int
-        struct.pack_into(s.base, s.find(name), 0, self.time_boot_ms, value, name)
+        buf = s.find(name)
+        struct.pack_into(s.base, buf, 0, 0, value, name)
+        self.clock.stamp_ms(buf, 0)
         s.written = True
 
     def debug(self, ind, value):
         """DEBUG: index, float value."""
         s = self._debug
-        struct.pack_into(s.base, s.buf, 0, self.time_boot_ms, value, ind)
+        struct.pack_into(s.base, s.buf, 0, 0, value, ind)
+        self.clock.stamp_ms(s.buf, 0)
         s.written = True
 
     def debug_vect(self, name, x, y, z):
         """DEBUG_VECT: name as bytes, up to 10; three floats."""
         s = self._debug_vect
-        struct.pack_into(s.base, s.buf, 0, self.uptime_ms * 1000, x, y, z, name)
+        struct.pack_into(s.base, s.buf, 0, 0, x, y, z, name)
+        self.clock.stamp_us(s.buf, 0)
         s.written = True
