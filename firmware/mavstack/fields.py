@@ -23,8 +23,8 @@ def u32(p, o):
 
 
 def i32(p, o):
-    v = p[o] | p[o + 1] << 8 | p[o + 2] << 16 | p[o + 3] << 24
-    return v - 0x100000000 if v & 0x80000000 else v
+    # From the signed high half: a value within +-2^30 never passes through a larger int.
+    return i16(p, o + 2) << 16 | p[o] | p[o + 1] << 8
 
 
 def f32_is_nan(p, o):
@@ -50,14 +50,14 @@ def f32_to_int(p, o):
     this reads them without creating a float. NaN and infinities read as 0;
     magnitudes beyond int32 saturate.
     """
-    b = p[o] | p[o + 1] << 8 | p[o + 2] << 16 | p[o + 3] << 24
-    e = (b >> 23) & 0xFF
+    hi = p[o + 2] | p[o + 3] << 8  # sign, exponent, top of the mantissa: in 16-bit halves,
+    e = (hi >> 7) & 0xFF  # so no int of 2^30 or more is made on a 32-bit board
     if e == 0xFF or e < 126:
         return 0
     if e > 157:
         v = 0x7FFFFFFF
     else:
-        m = (b & 0x7FFFFF) | 0x800000
+        m = (hi & 0x7F | 0x80) << 16 | p[o + 1] << 8 | p[o]
         shift = e - 150
         v = m << shift if shift >= 0 else (m + (1 << (-shift - 1))) >> -shift
-    return -v if b & 0x80000000 else v
+    return -v if hi & 0x8000 else v

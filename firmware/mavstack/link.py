@@ -7,6 +7,7 @@ from .encoder import Encoder
 
 _RX_CHUNK = const(512)
 _RX_READS_PER_POLL = const(8)  # bounds the time one busy link can take from a poll
+TX_WRAP = const(0x1FFFFFFF)  # tx_bytes wraps here: take differences as (a - b) & TX_WRAP
 
 
 class Link:
@@ -57,7 +58,7 @@ class Link:
         if self.transport.write(self.txbuf, n) != n:
             self.tx_dropped += 1
             return False
-        self.tx_bytes += n
+        self.tx_bytes = (self.tx_bytes + n) & TX_WRAP  # a counter that stays a small int
         return True
 
     def send_payload(self, msgid, payload, n, compid=-1):

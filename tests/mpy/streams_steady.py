@@ -17,18 +17,7 @@ try:
     import micropython
 except ImportError:
     micropython = None
-try:
-    from time import ticks_us, ticks_diff as us_diff
-except ImportError:
-    from time import perf_counter
-
-    def ticks_us():
-        return int(perf_counter() * 1000000)
-
-    def us_diff(a, b):
-        return a - b
-
-from mavstack.compat import ticks_add
+from mavstack.compat import ticks_add, ticks_us, ticks_diff as us_diff
 from harness import Bench
 
 # (message id, Hz): ten streams of telemetry slots.

@@ -41,6 +41,7 @@ left until the next tick; the loop never waits.
 """
 import struct
 
+from ..link import TX_WRAP
 from ..compat import const, ticks_diff, ticks_add
 from ..fields import u16
 from .telemetry import Telemetry
@@ -59,8 +60,10 @@ _BURST_MS = const(50)  # credit a quiet link may save up, in ms of its capacity
 _MIN_BURST = const(300)  # bytes: a full MAVLink 2 frame always fits
 _MARGIN_DIV = const(20)  # keep 1/20 of the budget for priority bursts
 _FLOOR_DIV = const(10)  # streams keep at least 1/10 of the budget in the fit
+_DEMAND_MAX = const(0x20000)  # B/s: demand << 12 stays below 2^30 (_stretch)
+_RATIO_MAX = const(0x40000)  # 64x in 1/4096: (interval & 4095) * ratio stays below 2^30
 _MIN_INTERVAL_US = const(1000)  # one send per main-loop tick at most
-_MAX_INTERVAL_US = const(1000000000)
+_MAX_INTERVAL_US = const(1000000000)  # below 2^30; also the most a fit stretches to
 _PHASE_STEP_MS = const(37)
 
 # (MAV_DATA_STREAM, message ids); see the table above.
@@ -105,6 +108,20 @@ class Stream:
         self.frac = 0  # microseconds carried between deadlines
         self.live = True  # the producer had something to send last time
         self.sent = 0
+
+
+def _stretch(interval_us, demand, avail):
+    """interval_us * demand / avail, rounded up, with no int of 2^30 or more on the way
+    (a heap object on a 32-bit board): the ratio as a fraction of 4096 (demand is below
+    _DEMAND_MAX), the product in two parts, and _MAX_INTERVAL_US at most."""
+    r = ((demand << 12) + avail - 1) // avail
+    if r > _RATIO_MAX:  # over 64 times the budget: whole multiples are fine enough
+        q = (demand + avail - 1) // avail
+        return _MAX_INTERVAL_US if interval_us > _MAX_INTERVAL_US // q else interval_us * q
+    hi = (interval_us >> 12) * r
+    if hi >= _MAX_INTERVAL_US:
+        return _MAX_INTERVAL_US
+    return hi + (((interval_us & 4095) * r + 4095) >> 12)
 
 
 class LinkStreams:
@@ -295,7 +312,7 @@ class Streams:
         span = ticks_diff(now, ls.win_start)
         tx = ls.link.tx_bytes
         if span > 0:
-            other = tx - ls.win_tx - ls.win_stream
+            other = ((tx - ls.win_tx) & TX_WRAP) - ls.win_stream
             ls.priority_bps = (other if other > 0 else 0) * 1000 // span
         ls.win_start = now
         ls.win_tx = tx
@@ -314,9 +331,12 @@ class Streams:
                 s.send = producers.get(s.msgid)
             if s.interval_us > 0 and s.live and s.send is not None:
                 demand += s.cost * 1000000 // s.interval_us
+        while demand >= _DEMAND_MAX:  # keep the ratio's numerator below 2^30 (see _stretch)
+            demand >>= 1
+            avail = (avail >> 1) or 1
         for s in ls.streams:
             if s.interval_us > 0 and demand > avail:
-                s.achieved_us = (s.interval_us * demand + avail - 1) // avail
+                s.achieved_us = _stretch(s.interval_us, demand, avail)
             else:
                 s.achieved_us = s.interval_us
             s.step_ms = s.achieved_us // 1000
@@ -330,7 +350,7 @@ class Streams:
         if dt > 0:
             credit += bps * dt
         tx = link.tx_bytes
-        credit -= (tx - ls.last_tx) * 1000  # everything sent since, priority traffic too
+        credit -= ((tx - ls.last_tx) & TX_WRAP) * 1000  # everything sent since, priority traffic too
         ls.last_tx = tx
         cap = bps * _BURST_MS
         if cap < _MIN_BURST * 1000:
@@ -357,7 +377,7 @@ class Streams:
             before = link.tx_bytes
             dropped = link.tx_dropped
             if s.send(link):
-                sent = link.tx_bytes - before
+                sent = (link.tx_bytes - before) & TX_WRAP
                 s.cost = sent
                 s.sent += 1
                 s.live = True
