@@ -68,6 +68,8 @@ class EmulatedBoard:
         self.close()
 
     def close(self):
+        if getattr(self, "_mav_serial", None) is not None:
+            self._mav_serial.close()
         if self.repl is not None:
             try:
                 self.repl.close()
@@ -90,13 +92,48 @@ class EmulatedBoard:
         """A tests/mpy script as MicroPython's unix port would run it: sys.argv set,
         tests/mpy importable (frozen in by tests/mcu/manifest.py)."""
         with open(path) as f:
-            src = f.read()
+            return self.exec(self._script(f.read(), args, os.path.basename(path)), timeout=timeout)
+
+    def _script(self, src, args, name="script.py"):
         # The qemu port has no sys.argv: the script's `import sys` finds a stand-in that has
         # one and passes everything else to the real module.
         pre = ("import sys as _sys\nclass _Sys:\n def __getattr__(self, n):\n  return getattr(_sys, n)\n"
-               "_s = _Sys()\n_s.argv = %r\n_sys.modules['sys'] = _s\n"
-               % ([os.path.basename(path)] + [str(a) for a in args]))
-        return self.exec(pre + src, timeout=timeout)
+               "_s = _Sys()\n_s.argv = %r\n_sys.modules['sys'] = _s\n" % ([name] + [str(a) for a in args]))
+        return pre + src
+
+    def start_script(self, src, args=()):
+        """Start a script that talks over the MAVLink UART too; finish_script() collects."""
+        self.repl.exec_raw_no_follow(self._script(src, args))
+        return None
+
+    def mavlink_serial(self):
+        """A pyserial port on the board's MAVLink UART (on qemu_m0: the REPL's own)."""
+        if self.uarts == 1:
+            return self.repl.serial
+        import serial
+
+        if getattr(self, "_mav_serial", None) is None:
+            self._mav_serial = serial.Serial(self.ptys[1], 115200, timeout=0.05)
+        return self._mav_serial
+
+    def finish_script(self, _handle, uart_bytes, timeout=300, expect=b"", times=1):
+        """The script's printed text once it is done. On qemu_m0 that text arrives in the
+        MAVLink byte stream (uart_bytes, filled by the caller's reader): wait for `expect`
+        to appear `times` times there and the raw REPL's end marker after it."""
+        end = time.time() + timeout
+        if self.uarts == 2:
+            out, err = self.repl.follow(timeout)
+            if err:
+                raise BoardError(err.decode(errors="replace"))
+            return out.decode(errors="replace")
+        while time.time() < end:
+            data = bytes(uart_bytes)
+            if data.count(expect) >= times and data.rfind(b"\x04") > data.rfind(expect):
+                return data.decode(errors="replace")
+            if b"Traceback" in data and data.count(b"\x04>") >= 1:
+                break
+            time.sleep(0.1)
+        raise BoardError("script did not finish: %r" % bytes(uart_bytes)[-2000:])
 
     def start_vehicle(self, options=None, timeout=20):
         """Boot firmware/main.py (frozen as `main`) and connect a pymavlink ground station."""

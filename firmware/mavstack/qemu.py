@@ -14,7 +14,7 @@ a ring the way a receive interrupt would, and readinto() takes from that ring.
 """
 import machine
 
-from .compat import const
+from micropython import const  # (not compat: compat imports this module)
 
 _mem32 = machine.mem32
 _MASK = const(0x3FFFFFFF)  # MicroPython's ticks period: 2^30
@@ -43,7 +43,11 @@ else:
     _mem32[0x40008510] = 9  # PRESCALER: 16 MHz / 2^9
     _mem32[0x4000800C] = 1  # TASKS_CLEAR
     _mem32[_TIMER] = 1  # TASKS_START
-    _UART = 0x40002000  # nRF51 UART0: RXDRDY +0x108, RXD +0x518, TXD +0x51C, TXDRDY +0x11C
+    # nRF51 UART0 at 0x40002000. Addresses are written out: each is an int past 2^30, and
+    # base + offset would make a new one (a heap object) on every use.
+    _RXDRDY = 0x40002108
+    _RXD = 0x40002518
+    _TXD = 0x4000251C
 
 
 class _Clock:
@@ -123,6 +127,21 @@ def sleep_ms(ms):
             return
 
 
+def _take(ring, h, dst, n):
+    """dst[0:n] = n bytes of ring from h (wrapping) -> the new h."""
+    size = len(ring)
+    for i in range(n):
+        dst[i] = ring[h]
+        h += 1
+        if h == size:
+            h = 0
+    return h
+
+
+def _put(ring, i, b):
+    ring[i % len(ring)] = b
+
+
 class UartTransport:
     """The board's MAVLink UART as a transport (readinto/write/bytes_per_s/name/close).
 
@@ -136,23 +155,18 @@ class UartTransport:
         self._ring = bytearray(ring)
         self._head = 0
         self._count = 0
-        self.overruns = 0
         if MODEL == "m3":
-            _mem32[_UART + 16] = 16  # BAUDDIV (QEMU wants >= 16 to pass data)
-            _mem32[_UART + 8] = 3  # CTRL: TX and RX enabled
+            _mem32[0x40005010] = 16  # BAUDDIV (QEMU wants >= 16 to pass data)
+            _mem32[0x40005008] = 3  # CTRL: TX and RX enabled
         _uarts.append(self)
 
     if MODEL == "m3":
 
         def drain(self):
-            ring = self._ring
-            size = len(ring)
-            while _mem32[_UART_STATE] & 2:  # RXFULL
-                b = _mem32[_UART]
-                if self._count == size:
-                    self.overruns += 1
-                    continue
-                ring[(self._head + self._count) % size] = b
+            # Stop when the ring is full: the rest waits in the UART (QEMU then stops
+            # reading the pty), as hardware flow control would hold it.
+            while self._count < len(self._ring) and _mem32[_UART_STATE] & 2:  # RXFULL
+                _put(self._ring, self._head + self._count, _mem32[_UART])
                 self._count += 1
 
         def _put(self, b):
@@ -165,35 +179,25 @@ class UartTransport:
     else:
 
         def drain(self):
-            ring = self._ring
-            size = len(ring)
-            while _mem32[_UART + 0x108]:  # RXDRDY
-                _mem32[_UART + 0x108] = 0
-                b = _mem32[_UART + 0x518]
-                if self._count == size:
-                    self.overruns += 1
-                    continue
-                ring[(self._head + self._count) % size] = b
+            while self._count < len(self._ring) and _mem32[_RXDRDY]:
+                _mem32[_RXDRDY] = 0
+                _put(self._ring, self._head + self._count, _mem32[_RXD])
                 self._count += 1
 
         def _put(self, b):
-            _mem32[_UART + 0x51C] = b  # QEMU's nRF51 UART sends at once
+            _mem32[_TXD] = b  # QEMU's nRF51 UART sends at once
             return True
 
-    def readinto(self, buf):
+    def readinto(self, buf, limit=0):
+        # Small functions: a bytecode function with more than ~11 words of locals and
+        # stack gets its frame from the heap on every call.
         self.drain()
         n = self._count
         if n > len(buf):
             n = len(buf)
-        ring = self._ring
-        size = len(ring)
-        h = self._head
-        for i in range(n):
-            buf[i] = ring[h]
-            h += 1
-            if h == size:
-                h = 0
-        self._head = h
+        if limit and n > limit:
+            n = limit
+        self._head = _take(self._ring, self._head, buf, n)
         self._count -= n
         return n
 
