@@ -112,3 +112,22 @@ def test_wire_parse_and_encode_locked_over_the_uart(board):
     assert hbs == list(range(0, count, 6)) * 2
     gps = [m for m in msgs if m.get_type() == "GPS_RAW_INT"]
     assert [m.lat for m in gps[:3]] == [-2, -8, -14] and gps[0].time_usec == 2000
+
+
+# --- the steady-state scripts the unix port runs, on both CPUs ---------------------------
+
+STEADY = (  # script, arguments: each prints a last line starting with "ok" when it passes
+    ("params_steady.py", ["bytewise", 2, 5760]),
+    ("params_steady.py", ["c_cast", 1, 5760]),
+    ("missions_steady.py", ["ram", 100]),
+    ("signing_steady.py", [300, "lock"]),
+    ("streams_steady.py", [2, 5760, 10000, 3]),  # 10,000 scheduler ticks, ten streams
+    ("status_steady.py", ["status,commands", "-", 3000]),
+)
+
+
+@pytest.mark.parametrize("script,args", STEADY, ids=["%s-%s" % (s[:-3], a[0]) for s, a in STEADY])
+def test_steady_state_scripts_heap_locked(board, script, args):
+    out = board.run_script(os.path.join(TESTS_MPY, script), args, timeout=900)
+    lines = out.strip().splitlines()
+    assert lines and lines[-1].lower().startswith("ok"), out

@@ -70,9 +70,9 @@ class _Clock:
             if d < 0:
                 d += _PERIOD_M3
             self.last = v
-            self.us = (self.us + d // 25) & _MASK
+            self.us = ticks_add(self.us, d // 25)
             sub = self.sub + d
-            self.ms = (self.ms + sub // _KHZ_M3) & _MASK
+            self.ms = ticks_add(self.ms, sub // _KHZ_M3)
             self.sub = sub % _KHZ_M3
             return self.ms
 
@@ -90,9 +90,9 @@ class _Clock:
                 d += _PERIOD_M0
             self.last = v
             d <<= 5  # 32 us a count (< 2^29)
-            self.us = (self.us + d) & _MASK
+            self.us = ticks_add(self.us, d)
             sub = self.sub + d
-            self.ms = (self.ms + sub // 1000) & _MASK
+            self.ms = ticks_add(self.ms, sub // 1000)
             self.sub = sub % 1000
             return self.ms
 
@@ -110,12 +110,21 @@ def ticks_us():
     return _clock.us
 
 
+# Wrapping arithmetic on the 30-bit ticks with every intermediate value inside the
+# 31-bit small ints (t + delta itself can pass 2^30, and 2^30 is already a heap int).
 def ticks_add(t, delta):
+    if t >= _HALF:
+        t = t - _HALF - _HALF
     return (t + delta) & _MASK
 
 
 def ticks_diff(a, b):
-    return ((a - b + _HALF) & _MASK) - _HALF
+    d = a - b
+    if d >= _HALF:
+        return d - _HALF - _HALF
+    if d < -_HALF:
+        return d + _HALF + _HALF
+    return d
 
 
 def sleep_ms(ms):
