@@ -44,9 +44,27 @@ from unix_params import PARAMS as _UNIX  # noqa: E402
 PARAMS = tuple(p for p in _UNIX if p[0] != "BRD_SERIAL_NUM") + (("BRD_SERIAL_NUM", UINT32, 0),)
 
 
+HEAP = [0, 0]  # heap in use and free (bytes) when the vehicle was shut down (bench_mcu.py)
+
+
+def shutdown():
+    """PREFLIGHT_REBOOT_SHUTDOWN 2: main.py returns to the REPL; the heap figures of the
+    vehicle as it ran are kept here, for the REPL to read."""
+    import gc
+
+    HEAP[0] = gc.mem_alloc()
+    HEAP[1] = gc.mem_free()
+
+
 def storage(address, size):
-    import uctypes
+    """Files in the RAM region outside the GC heap (in a bytearray when these profiles
+    run on the unix port, to try them there)."""
+    import sys
     from mavstack.storage_ram import RamStorage
+
+    if sys.platform != "qemu":
+        return RamStorage(bytearray(size))
+    import uctypes
 
     return RamStorage(uctypes.bytearray_at(address, size))
 

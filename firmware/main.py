@@ -9,7 +9,7 @@ import gc
 import sys
 
 from mavstack.compat import ticks_ms, sleep_ms
-from mavstack.endpoint import Endpoint, Reboot
+from mavstack.endpoint import Endpoint, Reboot, Shutdown
 from mavstack.storage import Storage
 from mavstack.uptime import Clock
 from mavstack.transport import open_transport
@@ -142,7 +142,7 @@ def main(argv):
             if hasattr(board, "reset"):
                 board.reset()
             continue
-        except KeyboardInterrupt:
+        except (KeyboardInterrupt, Shutdown):
             pass
         ep.close()
         return

@@ -39,6 +39,8 @@ def skip_reason():
 
 
 class EmulatedBoard:
+    DEFAULT_HEAP_KB = firmware.DEFAULT_HEAP_KB
+
     def __init__(self, board, heap_kb=firmware.DEFAULT_HEAP_KB, manifest=None, boot_timeout=20):
         self.board = board
         self.elf = firmware.build(board, heap_kb, manifest=manifest)
@@ -152,6 +154,13 @@ class EmulatedBoard:
         if gcs.wait_heartbeat(timeout=timeout) is None:
             raise BoardError("no HEARTBEAT from the %s vehicle; console: %r" % (self.board, self.console()))
         return gcs
+
+    def reopen_repl(self):
+        """The REPL again on qemu_m0's one UART, once the vehicle has returned to it."""
+        from mpremote.transport_serial import SerialTransport
+
+        self.repl = SerialTransport(self.ptys[0], 115200)
+        self.repl.enter_raw_repl(soft_reset=False)
 
     def console(self, wait=0.2):
         """What the REPL UART printed (qemu_m3; qemu_m0 shares it with MAVLink)."""

@@ -6,6 +6,7 @@ downloads a 100-item mission with coordinates past +-107 degrees and an altitude
 -400 m, arms and disarms, asks for ATTITUDE at 10 Hz and GLOBAL_POSITION_INT at 5 Hz
 and reads SYSTEM_TIME. A MemoryError anywhere stops the vehicle, and the test with it.
 """
+import os
 import struct
 import time
 
@@ -25,7 +26,9 @@ LONS = (-1224000000, 1512000000, 1799000000)  # -122.4, 151.2 and 179.9 degrees
 @pytest.fixture(params=BOARDS)
 def vehicle(request):
     _gate()
-    with EmulatedBoard(request.param) as b:
+    # bench/bench_mcu.py bisects the heap size with MCU_VEHICLE_HEAP_KB.
+    heap_kb = int(os.environ.get("MCU_VEHICLE_HEAP_KB", "0")) or EmulatedBoard.DEFAULT_HEAP_KB
+    with EmulatedBoard(request.param, heap_kb) as b:
         yield b
 
 

@@ -13,6 +13,15 @@ class Reboot(Exception):
     """Raised out of poll() once a reboot was acknowledged; main.py restarts the board."""
 
 
+class Shutdown(Exception):
+    """Raised out of poll() once a shutdown was acknowledged; main.py returns."""
+
+
+# Raised as made here, once: making an exception allocates, and the heap may be locked.
+REBOOT = Reboot()
+SHUTDOWN = Shutdown()
+
+
 class Endpoint:
     def __init__(self, dialect, sysid=1, compid=1):
         self.dialect = dialect

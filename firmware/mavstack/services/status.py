@@ -32,7 +32,7 @@ import struct
 
 from .. import VERSION
 from ..compat import const, ticks_ms, ticks_us, ticks_diff, ticks_add, sleep_ms
-from ..endpoint import Reboot
+from ..endpoint import REBOOT, SHUTDOWN
 from ..fields import u32
 from ..kernels import copy
 from .statustext import TextQueue, CRITICAL, NOTICE, WARNING
@@ -347,7 +347,8 @@ class Status:
             self._reboot = 0
             if action == 2:
                 ep.board.shutdown()
-            raise Reboot()
+                raise SHUTDOWN
+            raise REBOOT
 
     def _measure(self):
         # Once a second: loop load and link figures for SYS_STATUS.
