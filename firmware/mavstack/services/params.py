@@ -22,16 +22,21 @@ a refusal also gets a STATUSTEXT saying why, a change is sent on every link.
 Values persist in storage file "params": MAV_CMD_PREFLIGHT_STORAGE (param1 1 save,
 0 reload, 2/4 defaults) or PARAM_AUTOSAVE_MS after the last change.
 
+Lists, reads, accepted sets, saves and reloads allocate nothing, on 32-bit boards too
+(no value of 2**30 or more is ever a Python int: see param_table.py); the file is
+written from and read into one buffer made at start-up. Refusals and errors format
+their STATUSTEXTs (they are rare).
+
 Application side: `i = params.index("WP_SPEED")` once, then `params.value(i)`;
 `params.get(name)`, `params.set(name, value)`; `params.on_change = f(name, value)`
 hears changes made by ground stations, commands and reloads.
 """
-import struct
-
 from ..compat import const, ticks_diff
 from ..fields import i16, cstr_len
-from ..kernels import copy
+from ..kernels import zero
+from ..link import TX_WRAP
 from .param_table import ParamTable, ID_LEN
+from .param_table import _copy4, _move, _put16  # byte moves whose frames fit the C stack
 from .param_table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32, READ_ONLY, REBOOT  # noqa: F401
 from .param_table import UINT64, INT64, REAL64  # noqa: F401  (declaring one is an error)
 
@@ -62,6 +67,8 @@ _MAX_DT_MS = const(100)
 _MAX_PER_TICK = const(4)
 
 _FILE = "params"
+_AFTER_REBOOT = b" applies after reboot"
+_TEXT_LEN = const(50)  # STATUSTEXT's text field
 
 
 class Params(ParamTable):
@@ -84,6 +91,9 @@ class Params(ParamTable):
         self._cursor = []
         self._credit = []
         self._last = []
+        self._text = bytearray(_TEXT_LEN)  # "NAME applies after reboot", made in place
+        self._data = self._image  # what _load read the file into
+        self._guard = _Guard()
 
     def attach(self, ep):
         self.ep = ep
@@ -112,56 +122,74 @@ class Params(ParamTable):
 
     # --- sending, paced ------------------------------------------------------------
     def tick(self, now):
-        for link in self.ep.links:
-            li = link.index
-            if li < len(self._pending) and self._pending[li]:
-                self._pace(li, link, now)
+        links = self.ep.links
+        for li in range(len(self._pending)):  # a link's index is its place in ep.links
+            if self._pending[li]:
+                self._pace(li, links[li], now)
         if self.dirty and self.autosave_ms and ticks_diff(now, self._changed_at) >= self.autosave_ms:
             self.save()
 
+    # (Small functions: MicroPython puts a frame with many locals on the heap.)
     def _pace(self, li, link, now):
+        self._credit[li] = self._earn(li, link, now)
+        sent = 0
+        while self._credit[li] > 0 and sent < _MAX_PER_TICK and self._pending[li]:
+            if not self._send_next(li, link):
+                break  # the transport is full: a later tick retries
+            sent += 1
+
+    def _earn(self, li, link, now):
+        """Link li's credit after the time since it last earned."""
         dt = ticks_diff(now, self._last[li])
         self._last[li] = now
         rate = link.bytes_per_s >> 1 if link.bytes_per_s else 0
-        credit = self._credit[li]
         if rate == 0:
-            credit = _BURST
-        elif dt > 0:
+            return _BURST
+        credit = self._credit[li]
+        if dt > 0:
             credit += (dt if dt < _MAX_DT_MS else _MAX_DT_MS) * rate
             if credit > _BURST:
                 credit = _BURST
+        return credit
+
+    def _send_next(self, li, link):
+        """Send the next value link li is owed, charged to its credit -> sent."""
+        i = self._owed(li)
+        self._cursor[li] = i
+        before = link.tx_bytes
+        if not self._send(link, i):
+            return False
+        self._want[li][i] = 0
+        self._pending[li] -= 1
+        self._cursor[li] = i + 1
+        self._credit[li] -= ((link.tx_bytes - before) & TX_WRAP) * 1000  # the counter wraps
+        return True
+
+    def _owed(self, li):
+        """The next index link li is owed at or after its cursor, wrapping: a list goes
+        in order."""
         want = self._want[li]
         n = self.count
         i = self._cursor[li]
-        sent = 0
-        while credit > 0 and sent < _MAX_PER_TICK and self._pending[li]:
-            # The next owed index at or after the cursor, wrapping: a list goes in order.
-            for _ in range(n):
-                if i >= n:
-                    i = 0
-                if want[i]:
-                    break
-                i += 1
-            before = link.tx_bytes
-            if not self._send(link, i):
-                break  # the transport is full: a later tick retries
-            credit -= (link.tx_bytes - before) * 1000
-            want[i] = 0
-            self._pending[li] -= 1
+        for _ in range(n):
+            if i >= n:
+                i = 0
+            if want[i]:
+                break
             i += 1
-            sent += 1
-        self._cursor[li] = i
-        self._credit[li] = credit
+        return i
 
     def _send(self, link, i):
         """One PARAM_VALUE for parameter i, copied straight from the table."""
-        off = link.begin()
-        buf = link.txbuf
-        copy(buf, self._wire, off | (4 * i) << 10, 4)
-        struct.pack_into("<HH", buf, off + 4, self.count, i)
-        copy(buf, self._names, (off + 8) | (ID_LEN * i) << 10, ID_LEN)
-        buf[off + 24] = self._types[i]
+        self._fill(link.txbuf, link.begin(), i)
         return link.send(_MSG_PARAM_VALUE)
+
+    def _fill(self, buf, off, i):
+        _copy4(buf, off, self._wire, 4 * i)
+        _put16(buf, off + 4, self.count)
+        _put16(buf, off + 6, i)
+        _move(buf, off + 8, self._names, ID_LEN * i, ID_LEN)
+        buf[off + 24] = self._types[i]
 
     def _reply(self, link, i):
         """Send at once (an answer), charged to the link's pacing credit."""
@@ -169,19 +197,22 @@ class Params(ParamTable):
         li = link.index
         before = link.tx_bytes
         self._send(link, i)
-        credit = self._credit[li] - (link.tx_bytes - before) * 1000
+        credit = self._credit[li] - ((link.tx_bytes - before) & TX_WRAP) * 1000
         self._credit[li] = credit if credit > -_BURST else -_BURST
 
     def _announce(self, i, skip=None):
         """Owe parameter i to every link but skip, paced like a list."""
-        for link in self.ep.links:
-            if link is skip:
-                continue
-            self._link_state(link)
-            want = self._want[link.index]
-            if not want[i]:
-                want[i] = 1
-                self._pending[link.index] += 1
+        links = self.ep.links
+        for li in range(len(links)):
+            if links[li] is not skip:
+                self._owe(links[li], i)
+
+    def _owe(self, link, i):
+        self._link_state(link)
+        want = self._want[link.index]
+        if not want[i]:
+            want[i] = 1
+            self._pending[link.index] += 1
 
     # --- protocol --------------------------------------------------------------------
     def _on_list(self, link, p):
@@ -200,7 +231,7 @@ class Params(ParamTable):
             return
         i = i16(p, 0)
         if i < 0:  # -1: by name
-            i = self.find(p, 4, cstr_len(p, 4, ID_LEN))
+            i = self._by_name(p, 4)
             if i < 0:
                 self._unknown(p, 4)
                 return
@@ -212,27 +243,40 @@ class Params(ParamTable):
     def _on_set(self, link, p):
         if not self.ep.for_us(p[4], p[5]):
             return
-        i = self.find(p, 6, cstr_len(p, 6, ID_LEN))
+        i = self._by_name(p, 6)
         if i < 0:
             self._unknown(p, 6)
             return
-        t = self._types[i]
-        ptype = p[22]
-        if not self.ep.allows(link):
-            why = "not in control"
-        elif self._flags[i] & READ_ONLY:
-            why = "read-only"
-        elif ptype != t and not (self.c_cast and ptype == REAL32):
-            # Bytewise, the type says how to read the bytes: another one would misread them.
-            why = "type %d, expected %d" % (ptype, t)
-        else:
-            why = self.accept(i, p, 0, self.c_cast or t == REAL32)
+        why = self._may_set(link, i, p)
+        if why is None:
+            # C-cast, the bytes are a float holding the value; bytewise, in its type
+            # (accept reads REAL32 parameters as floats either way).
+            why = self.accept(i, p, 0, self.c_cast)
         self._reply(link, i)
         if why is not None:
             self._refused(i, why)
             return
         self._announce(i, link)
         self._changed_by_gcs(i)
+
+    def _by_name(self, p, o):
+        return self.find(p, o, cstr_len(p, o, ID_LEN))
+
+    def _may_set(self, link, i, p):
+        """None if PARAM_SET p may change parameter i, else why not."""
+        why = self._may_change(link, i)
+        if why is None and p[22] != self._types[i] and not (self.c_cast and p[22] == REAL32):
+            # Bytewise, the type says how to read the bytes: another one would misread them.
+            why = "type %d, expected %d" % (p[22], self._types[i])
+        return why
+
+    def _may_change(self, link, i):
+        """None if a ground station on link may change parameter i, else why not."""
+        if not self.ep.allows(link):
+            return "not in control"
+        if self._flags[i] & READ_ONLY:
+            return "read-only"
+        return None
 
     def _do_set_parameter(self, cmd):
         """MAV_CMD_DO_SET_PARAMETER: param1 the parameter's index, param2 its value."""
@@ -242,11 +286,8 @@ class Params(ParamTable):
         if not 0 <= i < self.count:
             self.ep.statustext(_SEVERITY_WARNING, "param index %d unknown (%d params)" % (i, self.count))
             return _RESULT_DENIED
-        if not self.ep.allows(cmd.link):
-            why = "not in control"
-        elif self._flags[i] & READ_ONLY:
-            why = "read-only"
-        else:
+        why = self._may_change(cmd.link, i)
+        if why is None:
             # Command parameters are floats holding the value itself; param2 is at byte 4.
             why = self.accept(i, cmd.payload, 4, True)
         if why is not None:
@@ -270,7 +311,7 @@ class Params(ParamTable):
         """PREFLIGHT_STORAGE param1: 0 reload, 1 save, 2 and 4 defaults -> MAV_RESULT."""
         if action == 1:
             return _RESULT_ACCEPTED if self.save() else _RESULT_FAILED
-        if action not in (0, 2, 4):
+        if action != 0 and action != 2 and action != 4:
             # 3 resets sensor calibration only: there is none here.
             return _RESULT_UNSUPPORTED if action == 3 else _RESULT_DENIED
         if link is not None and not self.ep.allows(link):
@@ -278,7 +319,7 @@ class Params(ParamTable):
         if action == 0:
             return _RESULT_ACCEPTED if self._load(False) else _RESULT_FAILED
         self._take(self._defaults, False)
-        self.ep.statustext(_SEVERITY_NOTICE, "params reset to defaults")
+        self.ep.statustext(_SEVERITY_NOTICE, b"params reset to defaults")
         return _RESULT_ACCEPTED
 
     def _unknown(self, p, o):
@@ -296,9 +337,18 @@ class Params(ParamTable):
             return
         self._touch()
         if self._flags[i] & REBOOT:
-            self.ep.statustext(_SEVERITY_NOTICE, "%s applies after reboot" % self.name(i))
+            self._note_reboot(i)
         if self.on_change is not None:
             self.on_change(self.name(i), self.value(i))
+
+    def _note_reboot(self, i):
+        """STATUSTEXT "NAME applies after reboot", made in a buffer (NUL-padded)."""
+        text = self._text
+        n = self._lens[i]
+        _move(text, 0, self._names, ID_LEN * i, n)
+        _move(text, n, _AFTER_REBOOT, 0, len(_AFTER_REBOOT))
+        zero(text, n + len(_AFTER_REBOOT), _TEXT_LEN)
+        self.ep.statustext(_SEVERITY_NOTICE, text)
 
     def _touch(self):
         self.dirty = True
@@ -306,13 +356,21 @@ class Params(ParamTable):
 
     def _take(self, values, saved):
         """A whole set of values (reload, defaults): sent and reported where changed."""
-        changed = self.adopt(values)
-        for i in changed:
-            self._announce(i)
-        if changed and not saved:
+        if not self.adopt(values):
+            return
+        mark = self._mark
+        for i in range(self.count):
+            if mark[i]:
+                self._announce(i)
+        if not saved:
             self._touch()
         if self.on_change is not None:
-            for i in changed:
+            self._report()
+
+    def _report(self):
+        """on_change for every value adopt() changed (allocates: names, values)."""
+        for i in range(self.count):
+            if self._mark[i]:
                 self.on_change(self.name(i), self.value(i))
 
     # --- application -----------------------------------------------------------------
@@ -330,57 +388,107 @@ class Params(ParamTable):
     # --- storage ---------------------------------------------------------------------
     def save(self):
         """Write every value to storage "params", atomically -> success."""
-        storage = getattr(self.ep, "storage", None)
-        if storage is None:
+        if getattr(self.ep, "storage", None) is None:
             return False
-        try:
-            f = storage.open_new(_FILE)
-            try:
-                f.write(self.pack())
-            finally:
-                f.close()
-            storage.commit(_FILE)
-        except OSError as e:
+        with self._guard:
+            self._write()
+        e = self._guard.error
+        if e is not None:
             self.ep.statustext(_SEVERITY_ERROR, "params not saved: %s" % e)
             return False
         self.dirty = False
         return True
 
+    def _write(self):
+        storage = self.ep.storage
+        # size: RAM storage gives a file its room when first made.
+        f = self._guard.file = storage.open_new(_FILE, size=len(self._image))
+        n = f.write(self.pack())
+        self._guard.file = None
+        f.close()  # before commit: a file system flushes it here
+        if n != len(self._image):
+            raise OSError(28)  # ENOSPC: the file's room is smaller (made by another firmware)
+        storage.commit(_FILE)
+
     def _load(self, boot):
         """Read storage "params" -> success. At boot an unusable file means defaults;
         a reload keeps the values in force."""
         storage = getattr(self.ep, "storage", None)
-        data = None
-        why = "no storage"
+        n = -1
         if storage is not None:
             if boot:
                 storage.discard_new(_FILE)  # a save cut short: the old file stands
-            try:
-                f = storage.open(_FILE)
-                try:
-                    data = f.read()
-                finally:
-                    f.close()
-            except OSError:
-                why = "none stored"
-        values, bad = (None, 0) if data is None else self.unpack(data)
-        if values is None:
-            if data is not None:
-                why = "stored file corrupt"
-            if boot:
-                sev = _SEVERITY_INFO if data is None else _SEVERITY_WARNING
-                self.ep.statustext(sev, "params: %s, using defaults" % why)
-            else:
-                self.ep.statustext(_SEVERITY_WARNING, "params not reloaded: %s" % why)
+            n = self._read(storage)
+        bad = -1 if n < 0 else self.unpack(self._data, n)
+        if bad < 0:
+            self._not_loaded(boot, storage, n)
             return False
         if boot:
-            self.adopt(values)
+            self.adopt(self._loaded)
         else:
-            self._take(values, True)
+            self._take(self._loaded, True)
         self.dirty = False
         if bad:
             self.ep.statustext(_SEVERITY_NOTICE, "params: %d stored values invalid, defaults used" % bad)
         return True
+
+    def _read(self, storage):
+        """The stored file into self._data -> its length, -1 if there is none."""
+        with self._guard:
+            return self._read_file(storage)
+        return -1  # an OSError: no file, or one that cannot be read
+
+    def _read_file(self, storage):
+        f = self._guard.file = storage.open(_FILE, "rb")
+        n = f.readinto(self._room(f))
+        self._guard.file = None
+        f.close()
+        return n
+
+    def _room(self, f):
+        """A buffer for file f: the file image's, unless f is bigger (a file another
+        firmware wrote: a rare buffer of its own)."""
+        n = f.seek(0, 2)
+        f.seek(0, 0)
+        self._data = self._image if n <= len(self._image) else bytearray(n)
+        return self._data
+
+    def _not_loaded(self, boot, storage, n):
+        if storage is None:
+            why = "no storage"
+        else:
+            why = "none stored" if n < 0 else "stored file corrupt"
+        if boot:
+            sev = _SEVERITY_INFO if n < 0 else _SEVERITY_WARNING
+            self.ep.statustext(sev, "params: %s, using defaults" % why)
+        else:
+            self.ep.statustext(_SEVERITY_WARNING, "params not reloaded: %s" % why)
+
+
+class _Guard:
+    """`with guard:` around work on a storage file: an OSError raised in the block ends
+    there, kept in guard.error, and guard.file, if the block left one open, is closed.
+
+    It is what try/except OSError as e and try/finally would do, but with frames that
+    fit on the C stack (MicroPython takes bigger ones from the heap, on every save), and
+    without the file's own __exit__ (RamFile's takes *exc: a tuple on every call).
+    """
+
+    def __init__(self):
+        self.error = None
+        self.file = None
+
+    def __enter__(self):
+        self.error = None
+        return self
+
+    def __exit__(self, kind, e, tb):
+        f = self.file
+        if f is not None:
+            self.file = None
+            f.close()
+        self.error = e
+        return isinstance(e, OSError)
 
 
 def create(ep):
