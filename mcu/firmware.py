@@ -157,8 +157,25 @@ def _build(board, heap_kb, frozen, manifest, quiet):
     if r.returncode:
         sys.stderr.write((r.stdout or "")[-4000:] + (r.stderr or "")[-4000:])
         raise RuntimeError("mcu: firmware build failed for %s" % board)
+    _check_storage_region(board, os.path.join(bdir, "firmware.elf"))
     shutil.copyfile(os.path.join(bdir, "firmware.elf"), out)
     return out
+
+
+def _check_storage_region(board, elf):
+    """The profile's RAM storage region must lie above everything the firmware uses
+    (its .bss holds the GC heap) and below the stack's 16 KB."""
+    with open(os.path.join(ROOT, "boards", board + ".py")) as f:
+        m = re.search(r"^STORAGE_REGION = \((0x[0-9A-Fa-f]+), (0x[0-9A-Fa-f]+)\)", f.read(), re.M)
+    start, size = int(m.group(1), 16), int(m.group(2), 16)
+    syms = {}
+    for line in _sh(["arm-none-eabi-nm", elf], capture_output=True, text=True).stdout.splitlines():
+        parts = line.split()
+        if len(parts) == 3:
+            syms[parts[2]] = int(parts[0], 16)
+    if not syms["_ebss"] <= start or not start + size <= syms["_estack"] - 16 * 1024:
+        raise RuntimeError("mcu: %s's storage region %#x+%#x overlaps the firmware's RAM (ends %#x) "
+                           "or the stack (below %#x)" % (board, start, size, syms["_ebss"], syms["_estack"]))
 
 
 def _manifest_inputs(manifest):
