@@ -722,7 +722,7 @@ def test_firmware_update_keeps_remaining_values(tmp_path):
 
 # --- MicroPython: the steady state allocates nothing --------------------------------
 
-_STEADY = "values=%d reads=4 sets=4 commands=2 big=5 own=0 " % (N + 1)
+_STEADY = "values=%d reads=4 sets=4 commands=2 big=5 refused=461 own=0 " % (N + 1)
 
 
 @pytest.mark.parametrize("args", [("bytewise", 2, 5760), ("c_cast", 1, 5760), ("bytewise", 1, 200000)])
@@ -731,7 +731,9 @@ def test_steady_state_under_heap_lock(args, portable, monkeypatch):
     """A paced list, reads by index and name, accepted PARAM_SETs and DO_SET_PARAMETERs,
     32-bit values set, saved to RAM storage, changed and reloaded (status, params and
     commands services, in-memory link): nothing asked of the heap (mem_total), then the
-    same under heap_lock. own=0: the service's own paths, apart from link and storage."""
+    same under heap_lock. own=0: the service's own paths, apart from link and storage.
+    refused=461: with the heap locked, refusals are still answered (4 values, 6
+    STATUSTEXTs, 1 DENIED)."""
     if portable:
         monkeypatch.setenv("MAVSTACK_PORTABLE", "1")
     r = run_mpy(os.path.join(ROOT, "tests", "mpy", "params_steady.py"), *args,

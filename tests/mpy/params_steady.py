@@ -16,8 +16,11 @@ After two warm-ups (first-time paths allocate; the RAM file has two areas), the 
 state runs under heap_requests: counted with mem_total, then under heap_lock.
 The service's own paths (a save and a reload into a plain storage stub, 32-bit values
 checked, cast and stored, a PARAM_VALUE's payload) are measured the same way, as own=.
+Last, with the heap locked, refusals (out of range, NaN, wrong type, read-only, an
+unknown name, DO_SET_PARAMETER of no parameter): refused=461 is 4 answers (PARAM_VALUE),
+6 STATUSTEXTs and 1 DENIED, so a refusal on a locked board does not stop the vehicle.
 
-Prints `ok values=N reads=N sets=N commands=N big=N own=0 requested=0 ms=N run_ms=N`
+Prints `ok values=N reads=N sets=N commands=N big=N refused=461 own=0 requested=0 ms=N run_ms=N`
 (ms: the list's simulated time, run_ms: one steady run's real time), or `fail` and what
 went wrong: a functional failure, or the same fields with own=/requested= (bytes, or
 MemoryError), locked= (ok: the run under heap_lock did its work) and the bytes each
@@ -145,6 +148,15 @@ class State:
                 self._set(g, b"SIM_SEED", 6, "<i", SEED_LOST),
             ],
             "reload": g.command(245, 0.0),
+            # Refusals: each answered with the value in force, and a STATUSTEXT.
+            "refused": [
+                g.frame(23, 45.0, 1, 1, b"SIM_SPEED", 9),  # out of range
+                g.frame(23, float("nan"), 1, 1, b"SIM_SPEED", 9),
+                self._set(g, b"SIM_SPEED", 6, "<i", 7),  # wrong type
+                self._set(g, b"MAV_SYS_ID", 6, "<i", 7),  # read-only
+            ],
+            "unknown_name": g.frame(23, 1.0, 1, 1, b"NO_SUCH_PARAM", 9),
+            "bad_index": g.command(180, 500.0, 1.0),
         }
 
 
@@ -292,6 +304,18 @@ def requests_fn():
         return _local_requests
 
 
+def refusals(s):
+    """Refused sets and a DO_SET_PARAMETER for no parameter -> answers, STATUSTEXTs."""
+    b = s.b
+    texts = b.seen[253]
+    denied = b.results[2]
+    s.out[15] = one_each(s, s.frames["refused"])
+    b.send(s.frames["unknown_name"])
+    b.send(s.frames["bad_index"])
+    b.run(50)
+    return s.out[15] * 100 + (b.seen[253] - texts) * 10 + b.results[2] - denied
+
+
 class FlatStorage:
     """The storage face at its plainest, one preallocated file: what the service's own
     save and reload cost, apart from any storage's."""
@@ -415,7 +439,17 @@ def main():
     own_paths(own)
     own_bytes = measure(requests, own_paths, own)
     s.b.ep.storage = storage
-    if own_bytes == 0 and requested == 0 and locked == "ok":
+    s.b.run(500)  # what own_paths' reload announced goes out first
+    # Refusals may allocate; with the heap locked (as on the boards) they must still be
+    # answered: 4 PARAM_VALUEs, 6 STATUSTEXTs, 1 DENIED.
+    micropython.heap_lock()
+    try:
+        refused = refusals(s)
+    except MemoryError:
+        refused = -1
+    micropython.heap_unlock()
+    summary += " refused=%d" % refused
+    if own_bytes == 0 and requested == 0 and locked == "ok" and refused == 461:
         print("ok %s own=0 requested=0 %s" % (summary, times))
         return
     # Each stage's bytes, in both runs (under heap_lock a frame's try is counted too).

@@ -426,10 +426,14 @@ class ParamTable:
         return self._why_not(i, src, o, cast)
 
     def _why_not(self, i, src, o, cast):
-        """Why accept() refused a finite value (the rare path: it allocates)."""
+        """Why accept() refused a finite value (the rare path: it allocates, but not
+        with the heap locked)."""
         if self._key(i, src, o, cast) == _FRACTION:
             return "not a whole number"
-        return "out of range %s..%s" % (self._show(i, self._lo), self._show(i, self._hi))
+        try:
+            return "out of range %s..%s" % (self._show(i, self._lo), self._show(i, self._hi))
+        except MemoryError:  # the heap is locked (the emulated boards): without the limits
+            return "out of range"
 
     def _store(self, i):
         """Parameter i := the value whose key is in self._k; sets self.changed."""

@@ -25,7 +25,8 @@ Values persist in storage file "params": MAV_CMD_PREFLIGHT_STORAGE (param1 1 sav
 Lists, reads, accepted sets, saves and reloads allocate nothing, on 32-bit boards too
 (no value of 2**30 or more is ever a Python int: see param_table.py); the file is
 written from and read into one buffer made at start-up. Refusals and errors format
-their STATUSTEXTs (they are rare).
+their STATUSTEXTs (they are rare); with the heap locked they say less, from a buffer,
+and the answer still goes out.
 
 Application side: `i = params.index("WP_SPEED")` once, then `params.value(i)`;
 `params.get(name)`, `params.set(name, value)`; `params.on_change = f(name, value)`
@@ -68,6 +69,7 @@ _MAX_PER_TICK = const(4)
 
 _FILE = "params"
 _AFTER_REBOOT = b" applies after reboot"
+_UNKNOWN = b"unknown param "
 _TEXT_LEN = const(50)  # STATUSTEXT's text field
 
 
@@ -267,7 +269,7 @@ class Params(ParamTable):
         why = self._may_change(link, i)
         if why is None and p[22] != self._types[i] and not (self.c_cast and p[22] == REAL32):
             # Bytewise, the type says how to read the bytes: another one would misread them.
-            why = "type %d, expected %d" % (p[22], self._types[i])
+            why = _type_why(p[22], self._types[i])
         return why
 
     def _may_change(self, link, i):
@@ -284,7 +286,7 @@ class Params(ParamTable):
             return _RESULT_DENIED
         i = cmd.int(1)
         if not 0 <= i < self.count:
-            self.ep.statustext(_SEVERITY_WARNING, "param index %d unknown (%d params)" % (i, self.count))
+            self._index_unknown(i)
             return _RESULT_DENIED
         why = self._may_change(cmd.link, i)
         if why is None:
@@ -322,33 +324,57 @@ class Params(ParamTable):
         self.ep.statustext(_SEVERITY_NOTICE, b"params reset to defaults")
         return _RESULT_ACCEPTED
 
+    # Refusals and errors: a STATUSTEXT each. Formatting allocates; where the heap may be
+    # locked (the emulated boards run so), a MemoryError there gets a plainer text made
+    # in self._text instead, so the vehicle carries on and the refusal is still answered.
     def _unknown(self, p, o):
-        text = bytearray(b"unknown param ")
+        text = self._text
+        n = len(_UNKNOWN)
+        _move(text, 0, _UNKNOWN, 0, n)
         for k in range(cstr_len(p, o, ID_LEN)):
             c = p[o + k]
-            text.append(c if 0x20 < c < 0x7F else 0x3F)  # '?' for what cannot be shown
+            text[n + k] = c if 0x20 < c < 0x7F else 0x3F  # '?' for what cannot be shown
+        zero(text, n + cstr_len(p, o, ID_LEN), _TEXT_LEN)
+        self.ep.statustext(_SEVERITY_WARNING, text)
+
+    def _index_unknown(self, i):
+        try:
+            text = "param index %d unknown (%d params)" % (i, self.count)
+        except MemoryError:
+            text = b"param index unknown"
         self.ep.statustext(_SEVERITY_WARNING, text)
 
     def _refused(self, i, why):
-        self.ep.statustext(_SEVERITY_WARNING, "%s not set: %s" % (self.name(i), why))
+        try:
+            text = "%s not set: %s" % (self.name(i), why)
+        except MemoryError:
+            text = self._named_text(i, b" not set")
+        self.ep.statustext(_SEVERITY_WARNING, text)
+
+    def _say(self, severity, fmt, arg, plain):
+        """STATUSTEXT fmt % arg, or plain (bytes) if that cannot be made."""
+        try:
+            text = fmt % arg
+        except MemoryError:
+            text = plain
+        self.ep.statustext(severity, text)
 
     def _changed_by_gcs(self, i):
         if not self.changed:
             return
         self._touch()
         if self._flags[i] & REBOOT:
-            self._note_reboot(i)
+            self.ep.statustext(_SEVERITY_NOTICE, self._named_text(i, _AFTER_REBOOT))
         if self.on_change is not None:
             self.on_change(self.name(i), self.value(i))
 
-    def _note_reboot(self, i):
-        """STATUSTEXT "NAME applies after reboot", made in a buffer (NUL-padded)."""
-        text = self._text
+    def _named_text(self, i, tail):
+        """Parameter i's name and tail, as a STATUSTEXT made in a buffer (NUL-padded)."""
         n = self._lens[i]
-        _move(text, 0, self._names, ID_LEN * i, n)
-        _move(text, n, _AFTER_REBOOT, 0, len(_AFTER_REBOOT))
-        zero(text, n + len(_AFTER_REBOOT), _TEXT_LEN)
-        self.ep.statustext(_SEVERITY_NOTICE, text)
+        _move(self._text, 0, self._names, ID_LEN * i, n)
+        _move(self._text, n, tail, 0, len(tail))
+        zero(self._text, n + len(tail), _TEXT_LEN)
+        return self._text
 
     def _touch(self):
         self.dirty = True
@@ -394,7 +420,7 @@ class Params(ParamTable):
             self._write()
         e = self._guard.error
         if e is not None:
-            self.ep.statustext(_SEVERITY_ERROR, "params not saved: %s" % e)
+            self._say(_SEVERITY_ERROR, "params not saved: %s", e, b"params not saved")
             return False
         self.dirty = False
         return True
@@ -429,7 +455,8 @@ class Params(ParamTable):
             self._take(self._loaded, True)
         self.dirty = False
         if bad:
-            self.ep.statustext(_SEVERITY_NOTICE, "params: %d stored values invalid, defaults used" % bad)
+            self._say(_SEVERITY_NOTICE, "params: %d stored values invalid, defaults used", bad,
+                      b"params: stored values invalid, defaults used")
         return True
 
     def _read(self, storage):
@@ -462,7 +489,14 @@ class Params(ParamTable):
             sev = _SEVERITY_INFO if n < 0 else _SEVERITY_WARNING
             self.ep.statustext(sev, "params: %s, using defaults" % why)
         else:
-            self.ep.statustext(_SEVERITY_WARNING, "params not reloaded: %s" % why)
+            self._say(_SEVERITY_WARNING, "params not reloaded: %s", why, b"params not reloaded")
+
+
+def _type_why(got, want):
+    try:
+        return "type %d, expected %d" % (got, want)
+    except MemoryError:  # the heap is locked
+        return "wrong type"
 
 
 class _Guard:
