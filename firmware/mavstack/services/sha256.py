@@ -5,8 +5,9 @@ receive and transmit paths. The compression is sha256_block from sha256_viper or
 sha256_portable, chosen like the byte kernels (kernels.IMPL, MAVSTACK_PORTABLE=1).
 
     h = Sha256(); h.update(buf, start, end); ...; h.digest_into(out32)   (then reusable)
-    s = Signature(); s.compute(key32, frame, n, out, off)  -> 6 signature bytes at out[off]
+    s = Signature(); s.sign(key32, frame, n)  -> the 6 signature bytes at frame[n:n+6]
         over key + frame[0:n], where frame[0:n] is header, payload, CRC, link id, timestamp
+    s.matches(key32, frame, n)  -> do frame[n:n+6] hold that signature?
 """
 from ..compat import const
 from ..kernels import IMPL, copy, zero
@@ -29,11 +30,14 @@ SIGNATURE_BYTES = const(6)
 
 
 class Sha256:
+    # Methods are small on purpose: a MicroPython function whose locals and value stack
+    # pass 11 words gets its frame from the heap (on the C stack only when the heap is
+    # locked), and these run for every signed frame.
     def __init__(self):
         self.state = bytearray(32)
         self.block = bytearray(_BLOCK)
         self.n = 0  # bytes waiting in block
-        self.total = 0  # bytes hashed so far
+        self.total = 0  # bytes hashed so far (the length field needs total * 8 < 2^30)
         self.reset()
 
     def reset(self):
@@ -43,39 +47,47 @@ class Sha256:
 
     def update(self, buf, start, end):
         """Hash buf[start:end]."""
-        block = self.block
-        n = self.n
         self.total += end - start
         while start < end:
+            start += self._fill(buf, start, end - start)
+
+    def _fill(self, buf, start, k):
+        # Up to k bytes from buf[start] into the block, compressed when full -> bytes taken.
+        n = self.n
+        if k > _BLOCK - n:
             k = _BLOCK - n
-            if k > end - start:
-                k = end - start
-            copy(block, buf, n | start << 10, k)
-            n += k
-            start += k
-            if n == _BLOCK:
-                sha256_block(self.state, block)
-                n = 0
+        copy(self.block, buf, n | start << 10, k)
+        n += k
+        if n == _BLOCK:
+            sha256_block(self.state, self.block)
+            n = 0
         self.n = n
+        return k
 
     def digest_into(self, out):
         """Write the 32-byte digest to out[0:32] and start over."""
         block = self.block
         n = self.n
-        bits = self.total << 3
         block[n] = 0x80
         n += 1
         if n > _BLOCK - 8:
             zero(block, n, _BLOCK)
             sha256_block(self.state, block)
             n = 0
-        zero(block, n, _BLOCK - 8)
-        for i in range(8):
-            block[_BLOCK - 1 - i] = bits & 0xFF
-            bits >>= 8
+        zero(block, n, _BLOCK)
+        _length(block, self.total << 3)
         sha256_block(self.state, block)
         copy(out, self.state, 0, 32)
         self.reset()
+
+
+def _length(block, bits):
+    # The message length in bits, big-endian, at the end of the (zeroed) last block.
+    i = _BLOCK - 1
+    while bits:
+        block[i] = bits & 0xFF
+        bits >>= 8
+        i -= 1
 
 
 class Signature:
@@ -85,22 +97,22 @@ class Signature:
         self.sha = Sha256()
         self.digest = bytearray(32)
 
-    def compute(self, key, frame, n, out, off):
+    def sign(self, key, frame, n):
+        """Write the signature of key + frame[0:n] to frame[n:n+6]."""
+        self._hash(key, frame, n)
+        copy(frame, self.digest, n, SIGNATURE_BYTES)
+
+    def matches(self, key, frame, n):
+        """Do the 6 bytes at frame[n:n+6] sign key + frame[0:n]?"""
+        self._hash(key, frame, n)
+        d = self.digest
+        for i in range(SIGNATURE_BYTES):
+            if d[i] != frame[n + i]:
+                return False
+        return True
+
+    def _hash(self, key, frame, n):
         sha = self.sha
         sha.update(key, 0, 32)
         sha.update(frame, 0, n)
         sha.digest_into(self.digest)
-        copy(out, self.digest, off, SIGNATURE_BYTES)
-
-    def matches(self, key, frame, n):
-        """Do the 6 bytes at frame[n:n+6] sign key + frame[0:n]?"""
-        sha = self.sha
-        sha.update(key, 0, 32)
-        sha.update(frame, 0, n)
-        digest = self.digest
-        sha.digest_into(digest)
-        ok = True
-        for i in range(SIGNATURE_BYTES):
-            if digest[i] != frame[n + i]:
-                ok = False
-        return ok

@@ -19,18 +19,20 @@ The key persists in storage file "signing_key": key (32), timestamp (8, little-e
 CRC-16 of both (2). A corrupt file leaves signing off and says so in a STATUSTEXT.
 List "signing" before "status" in SERVICES: then the boot HEARTBEAT is signed too.
 
-Timestamps (units of 10 us since 2015-01-01) are kept as 6 little-endian bytes and
-compared as two 24-bit halves, so that 32-bit ports need no long ints per frame. The
-timestamp sent rises by one per frame and follows the clock: the status service's
-time of day when known, else the stored timestamp plus uptime. After a restart it
-resumes a whole save interval ahead of the stored one, so it never goes backwards.
+Timestamps (units of 10 us since 2015-01-01, so always past 2^30) are 48-bit and kept
+as 6 little-endian bytes, as on the wire: compared by 24-bit halves and advanced
+bytewise, never made into an int (on a 32-bit port an int of 2^30 or more is a heap
+object). Verifying and signing frames and the clock allocate nothing, nor does a save
+beyond what the storage's own open and write take. The
+timestamp sent rises by one per frame and follows the clock: the endpoint clock's time
+of day when known (re-read every 10 s), else the stored timestamp plus uptime. After a
+restart it resumes a whole save interval ahead of the stored one, so it never goes
+backwards.
 
 Counters: accepted, bad_signature, replayed, unsigned (frames dropped per reason).
 """
-import struct
-
 from ..compat import const, ticks_diff
-from ..kernels import copy
+from ..kernels import copy, crc16
 from ..parser import HEADER_V2, SIGNATURE_LEN
 from ..storage import checksum
 from .sha256 import Signature
@@ -42,31 +44,9 @@ _FILE = "signing_key"
 _FILE_LEN = const(42)
 _STREAMS = const(16)  # (sysid, compid, link id) streams whose last timestamp is kept
 _NEW_STREAM_SLACK = const(6000000)  # a new stream may start up to a minute behind us
-_LOW = const(0xFFFFFF)
 _CLOCK_MS = const(1000)  # follow uptime this often
 _SYNC_MS = const(10000)  # re-read the time of day this often
-_EPOCH_2015_US = 1420070400000000
-
-
-def _lo(b, o):
-    return b[o] | b[o + 1] << 8 | b[o + 2] << 16
-
-
-def _hi(b, o):
-    return b[o + 3] | b[o + 4] << 8 | b[o + 5] << 16
-
-
-def _put(b, o, hi, lo):
-    b[o] = lo & 0xFF
-    b[o + 1] = (lo >> 8) & 0xFF
-    b[o + 2] = lo >> 16
-    b[o + 3] = hi & 0xFF
-    b[o + 4] = (hi >> 8) & 0xFF
-    b[o + 5] = (hi >> 16) & 0xFF
-
-
-def _as_int(b):
-    return _hi(b, 0) << 24 | _lo(b, 0)
+_EPOCH_2015 = b"\x00\x80\xbf\xe7\x8b\x0b\x05\x00"  # 1420070400000000 us, little-endian
 
 
 class _LinkSigner:
@@ -87,6 +67,8 @@ class _LinkSigner:
 class Signing:
     NAME = "signing"
 
+    # Per-frame methods are split small: a MicroPython function whose locals and value
+    # stack pass 11 words gets its frame from the heap.
     def __init__(self, setup_links=None, allow_unsigned=(0,), save_ms=60000):
         self.setup_links = setup_links
         self.allow_unsigned = tuple(allow_unsigned) + (_MSG_RADIO_STATUS,)
@@ -95,11 +77,12 @@ class Signing:
         self.enabled = False
         self.ts = bytearray(6)  # our timestamp, last one sent
         self._sig = Signature()
-        self._keys = [-1] * _STREAMS
-        self._stamps = bytearray(6 * _STREAMS)
+        self._keys = [-1] * _STREAMS  # sysid << 16 | compid << 8 | link id
+        self._stamps = bytearray(6 * _STREAMS)  # their last timestamps
         self._next = 0
-        self._clk_hi = 0  # clock (stored timestamp + uptime, or time of day) at _clk_at
-        self._clk_lo = 0
+        self._clk = bytearray(6)  # the clock (stored timestamp + uptime, or time of day) at _clk_at
+        self._tmp = bytearray(8)  # scratch: a new stream's limit, the time of day
+        self._file = bytearray(_FILE_LEN)
         self._clk_at = 0
         self._synced_at = 0
         self._saved_at = 0
@@ -124,53 +107,61 @@ class Signing:
     # --- per frame ---------------------------------------------------------------------
     def check(self, rx, buf, plen, signed):
         if not signed:
-            if rx.msgid in self.allow_unsigned:
-                return True
-            self.unsigned += 1
-            return False
-        s = HEADER_V2 + plen + 2  # link id, then timestamp, then signature
-        if not self._sig.matches(self.key, buf, s + 7):
+            return self._unsigned(rx)
+        plen += HEADER_V2 + 2  # now the offset of the link id, then timestamp, then signature
+        if not self._sig.matches(self.key, buf, plen + 7):
             self.bad_signature += 1
             return False
-        t = s + 1
-        hi = _hi(buf, t)
-        lo = _lo(buf, t)
-        key = rx.sysid << 16 | rx.compid << 8 | buf[s]
-        keys = self._keys
-        stamps = self._stamps
-        i = -1
-        for k in range(_STREAMS):
-            if keys[k] == key:
-                i = k
-                break
-        if i >= 0:
-            o = i * 6
-            if not _newer(hi, lo, _hi(stamps, o), _lo(stamps, o)):
-                self.replayed += 1
-                return False
-        else:
-            lo2 = lo + _NEW_STREAM_SLACK
-            if _newer(_hi(self.ts, 0), _lo(self.ts, 0), hi + (lo2 >> 24), lo2 & _LOW):
-                self.replayed += 1
-                return False
-            i = self._next
-            self._next = (i + 1) % _STREAMS
-            keys[i] = key
-        copy(stamps, buf, i * 6 | t << 10, 6)
-        if _newer(hi, lo, _hi(self.ts, 0), _lo(self.ts, 0)):
-            copy(self.ts, buf, t << 10, 6)
+        if not self._fresh(rx, buf, plen):
+            self.replayed += 1
+            return False
         self.accepted += 1
         return True
 
+    def _unsigned(self, rx):
+        if rx.msgid in self.allow_unsigned:
+            return True
+        self.unsigned += 1
+        return False
+
+    def _fresh(self, rx, buf, s):
+        # Is the timestamp at buf[s+1:s+7] newer than the last from its stream (link id at
+        # buf[s])? If so it is the stream's last, and ours if it is ahead of ours.
+        key = rx.sysid << 16 | rx.compid << 8 | buf[s]
+        i = _find(self._keys, key)
+        if i < 0:
+            i = self._new_stream(key, buf, s)
+            if i < 0:
+                return False
+        elif not _later(buf, s + 1, self._stamps, i):
+            return False
+        self._keep(buf, s, i)
+        return True
+
+    def _new_stream(self, key, buf, s):
+        # A stream not seen (or forgotten) -> its offset in _stamps, or -1 if its
+        # timestamp is more than _NEW_STREAM_SLACK behind ours (an old frame replayed).
+        t = self._tmp
+        _plus(t, buf, s + 1, _NEW_STREAM_SLACK)
+        if _later(self.ts, 0, t, 0):
+            return -1
+        i = self._next
+        self._next = (i + 1) % _STREAMS
+        self._keys[i] = key
+        return 6 * i
+
+    def _keep(self, buf, s, i):
+        s += 1
+        copy(self._stamps, buf, i | s << 10, 6)
+        if _later(buf, s, self.ts, 0):
+            copy(self.ts, buf, s << 10, 6)
+
     def sign(self, buf, end, link_id):
         ts = self.ts
-        for i in range(6):
-            ts[i] = (ts[i] + 1) & 0xFF
-            if ts[i]:
-                break
+        _plus(ts, ts, 0, 1)
         buf[end] = link_id
         copy(buf, ts, end + 1, 6)
-        self._sig.compute(self.key, buf, end + 7, buf, end + 7)
+        self._sig.sign(self.key, buf, end + 7)
         return SIGNATURE_LEN
 
     # --- clock -------------------------------------------------------------------------
@@ -183,27 +174,23 @@ class Signing:
         dt = ticks_diff(now, self._clk_at)
         if dt < _CLOCK_MS:
             return
-        lo = self._clk_lo + dt * 100
-        self._clk_hi += lo >> 24
-        self._clk_lo = lo & _LOW
         self._clk_at = now
+        _advance(self._clk, dt)
         if ticks_diff(now, self._synced_at) >= _SYNC_MS:
             self._synced_at = now
             self._sync()
-        if _newer(self._clk_hi, self._clk_lo, _hi(self.ts, 0), _lo(self.ts, 0)):
-            _put(self.ts, 0, self._clk_hi, self._clk_lo)
+        if _later(self._clk, 0, self.ts, 0):
+            copy(self.ts, self._clk, 0, 6)
         if self.save_ms and ticks_diff(now, self._saved_at) >= self.save_ms:
             self._saved_at = now
             self._save()
 
     def _sync(self):
-        # Long ints on 32-bit ports: only every _SYNC_MS.
-        status = self.ep.services.get("status")
-        usec = status.unix_usec() if status is not None else 0
-        if usec > _EPOCH_2015_US:
-            v = (usec - _EPOCH_2015_US) // 10
-            self._clk_hi = v >> 24
-            self._clk_lo = v & _LOW
+        # The clock becomes the time of day, when that is known.
+        t = self._tmp
+        self.ep.clock.stamp_unix(t, 0)  # unix us as bytes, zero while unknown
+        if _since_2015(t):
+            copy(self._clk, t, 0, 6)
 
     # --- key ---------------------------------------------------------------------------
     def _on_setup(self, link, p):
@@ -214,22 +201,29 @@ class Signing:
             return
         if not self.ep.allows(link):
             return
-        initial = struct.unpack_from("<Q", p, 0)[0]
-        self.set_key(p[10:42], initial)
+        t = bytearray(6)
+        copy(t, p, 0, 6)  # timestamps are 48-bit: the low 6 bytes of the u64
+        self._use_key(p[10:42], t)
         self._save()
         self.ep.statustext(NOTICE, b"Signing on" if self.enabled else b"Signing off")
 
     def set_key(self, key, timestamp=0):
         """Use this 32-byte key (all zeros: signing off), timestamp at least as given."""
+        t = bytearray(6)
+        for i in range(6):
+            t[i] = (timestamp >> (8 * i)) & 0xFF
+        self._use_key(key, t)
+
+    def _use_key(self, key, t):
+        # t: the lowest timestamp to go on from, 6 bytes.
         copy(self.key, key, 0, 32)
-        if timestamp > _as_int(self.ts):
-            _put(self.ts, 0, timestamp >> 24, timestamp & _LOW)
-        self._clk_hi = _hi(self.ts, 0)
-        self._clk_lo = _lo(self.ts, 0)
+        if _later(t, 0, self.ts, 0):
+            copy(self.ts, t, 0, 6)
+        copy(self._clk, self.ts, 0, 6)
         self._clk_at = self.ep.now
         self._sync()
-        if _newer(self._clk_hi, self._clk_lo, _hi(self.ts, 0), _lo(self.ts, 0)):
-            _put(self.ts, 0, self._clk_hi, self._clk_lo)
+        if _later(self._clk, 0, self.ts, 0):
+            copy(self.ts, self._clk, 0, 6)
         for i in range(_STREAMS):
             self._keys[i] = -1
         self.enabled = any(self.key)
@@ -252,32 +246,91 @@ class Signing:
         if len(data) != _FILE_LEN or checksum(data[:40]) != data[40] | data[41] << 8:
             self._warning = b"Signing key corrupt: signing off"
             return
-        stored = int.from_bytes(data[32:40], "little")
         # Frames may have gone out up to a save interval past the stored timestamp;
         # saved at once, so that a quick second restart starts past this one.
-        self.set_key(data[:32], stored + self.save_ms * 100)
+        t = bytearray(data[32:38])
+        _advance(t, self.save_ms)
+        self._use_key(data[:32], t)
         self._save()
 
     def _save(self):
-        storage = getattr(self.ep, "storage", None)
-        if storage is None:
-            return
-        data = bytearray(_FILE_LEN)
-        copy(data, self.key, 0, 32)
-        copy(data, self.ts, 32, 6)
-        crc = checksum(memoryview(data)[:40])
-        data[40] = crc & 0xFF
-        data[41] = crc >> 8
         try:
-            with storage.open_new(_FILE) as f:
-                f.write(data)
-            storage.commit(_FILE)
+            self._write()
         except OSError:
             self.ep.statustext(WARNING, b"Signing key not saved")
 
+    def _write(self):
+        storage = getattr(self.ep, "storage", None)
+        if storage is None:
+            return
+        data = self._file  # key (32), timestamp (8, the top two bytes zero), CRC
+        copy(data, self.key, 0, 32)
+        copy(data, self.ts, 32, 6)
+        crc = crc16(data, 0, 40, 0xFFFF)
+        data[40] = crc & 0xFF
+        data[41] = crc >> 8
+        # No `with`: RamFile.__exit__(*exc) would allocate its arguments' tuple.
+        f = storage.open_new(_FILE, _FILE_LEN)
+        f.write(data)
+        f.close()
+        storage.commit(_FILE)
 
-def _newer(hi, lo, hi2, lo2):
-    return hi > hi2 or (hi == hi2 and lo > lo2)
+
+# --- 48-bit timestamps as 6 little-endian bytes ----------------------------------------
+def _later(a, i, b, j):
+    """Is the timestamp at a[i:i+6] later than the one at b[j:j+6]? (by 24-bit halves)"""
+    x = a[i + 5] << 16 | a[i + 4] << 8 | a[i + 3]
+    y = b[j + 5] << 16 | b[j + 4] << 8 | b[j + 3]
+    if x != y:
+        return x > y
+    x = a[i + 2] << 16 | a[i + 1] << 8 | a[i]
+    return x > (b[j + 2] << 16 | b[j + 1] << 8 | b[j])
+
+
+def _plus(dst, src, o, n):
+    """dst[0:6] = src[o:o+6] + n, for 0 <= n < 2^29 (dst may be src at o = 0)."""
+    for i in range(6):
+        n += src[o + i]
+        dst[i] = n & 0xFF
+        n >>= 8
+
+
+def _advance(t, ms):
+    """t[0:6] += ms milliseconds, in steps that keep every sum small."""
+    while ms > 40000:
+        _plus(t, t, 0, 4000000)
+        ms -= 40000
+    if ms > 0:
+        _plus(t, t, 0, ms * 100)
+
+
+def _find(keys, key):
+    # -> the stream's offset in _stamps, or -1
+    for i in range(_STREAMS):
+        if keys[i] == key:
+            return 6 * i
+    return -1
+
+
+def _since_2015(t):
+    """t[0:8], unix time in us -> t[0:6], units of 10 us since 2015 (False: unknown or earlier)."""
+    if not _minus_epoch(t):
+        return False
+    r = 0
+    for i in range(7, -1, -1):  # long division by 10, top byte first
+        r = r << 8 | t[i]
+        t[i] = r // 10
+        r %= 10
+    return not (t[6] | t[7])
+
+
+def _minus_epoch(t):
+    b = 0
+    for i in range(8):
+        b = t[i] - _EPOCH_2015[i] - b
+        t[i] = b & 0xFF
+        b = (b >> 8) & 1  # borrow
+    return not b
 
 
 def create(ep):
