@@ -95,11 +95,11 @@ def test_whole_vehicle_heap_locked(vehicle):
     params = _params(gcs)
     assert len(params) == 100, sorted(params)
     assert _set(gcs, "SIM_SPEED", 7.25, 9).param_value == 7.25
-    v = _set(gcs, "BRD_SERIAL_NUM", _bits_as_float(UINT32_BIG), 7)  # MAV_PARAM_TYPE_UINT32
+    v = _set(gcs, "BRD_SERIAL_NUM", _bits_as_float(UINT32_BIG), 5)  # MAV_PARAM_TYPE_UINT32
     assert v is not None and _float_bits(v.param_value) == UINT32_BIG
     assert run(gcs, 245, 1.0) == MAV_RESULT_ACCEPTED  # save
     assert _set(gcs, "SIM_SPEED", 3.0, 9).param_value == 3.0
-    assert _float_bits(_set(gcs, "BRD_SERIAL_NUM", _bits_as_float(5), 7).param_value) == 5
+    assert _float_bits(_set(gcs, "BRD_SERIAL_NUM", _bits_as_float(5), 5).param_value) == 5
     assert run(gcs, 245, 0.0) == MAV_RESULT_ACCEPTED  # reload what was saved
     assert _read(gcs, "SIM_SPEED").param_value == 7.25
     assert _float_bits(_read(gcs, "BRD_SERIAL_NUM").param_value) == UINT32_BIG

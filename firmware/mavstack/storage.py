@@ -45,6 +45,9 @@ class Storage:
         """Open NAME.new for writing; commit(name) makes it NAME."""
         return open(self.path(name) + ".new", "wb")
 
+    def reserve(self, name, size):
+        """Nothing to do on a file system (storage_ram.py makes room here)."""
+
     def commit(self, name):
         new = self.path(name) + ".new"
         final = self.path(name)

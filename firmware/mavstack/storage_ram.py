@@ -1,22 +1,25 @@
 """Storage for a board without a filesystem: files in one fixed memory region.
 
-Same face as storage.Storage (exists, open, open_new, commit, discard_new, remove), so
-parameters, missions and signing keep their code. The region is a bytearray the board
-hands over: on the emulated boards a RAM area outside the GC heap
+Same face as storage.Storage (exists, open, open_new, commit, discard_new, remove,
+reserve), so parameters, missions and signing keep their code. The region is a
+bytearray the board hands over: on the emulated boards a RAM area outside the GC heap
 (uctypes.bytearray_at), which survives a soft reset but not power-off; on a real board
 the same scheme fits a reserved flash area behind a write-through buffer.
 
 Layout: a 16-byte header (magic, directory size, entries in use), a directory of
 32-byte entries, then the file data. An entry: name (16 bytes, NUL-padded), u32 offset
 of area A (B follows it), u32 capacity of each, u24 length of A, u8 current area, u24
-length of B, u8 flags (exists, two areas). A file replaced with
-open_new/commit is written into the area not in use and becomes the file when commit
-flips the byte, so a reader never sees half a write. Areas are handed out once, when a
-file is first created, at the capacity the creator names (size=), or DEFAULT_SIZE;
-files made by open() (written in place, like the mission slots) get one area only.
+length of B, u8 flags (exists, two areas). A file replaced with open_new/commit is
+written into the area not in use and becomes the file when commit flips the byte, so a
+reader never sees half a write. Areas are handed out once, when a file is first
+created, at the capacity the creator names (size=), or DEFAULT_SIZE; files made by
+open() (written in place, like the mission slots) get one area only.
 
-Nothing here allocates after a file's first open: handles are made once per file and
-reused, reads and writes copy bytes in place, so saves run under heap_lock().
+Nothing here allocates once a file exists: its two handles are made with it and reused,
+reads and writes copy bytes in place, and every function keeps its frame small (a
+bytecode function with more than ~11 words of locals and stack gets its frame from the
+heap on each call). A service that first writes a file at run time reserves it at
+start-up (reserve()), so that the first save needs no allocation either.
 """
 from .compat import const
 
@@ -26,11 +29,11 @@ _ENTRY = const(32)
 _NAME = const(16)
 DEFAULT_SIZE = const(1024)
 _EXISTS = const(1)  # entry byte 31
-_TWO = const(2)  # has areas A and B (made by open_new)
+_TWO = const(2)  # has areas A and B (made by open_new or reserve)
 
 
 def _u32(b, o):
-    return b[o] | b[o + 1] << 8 | b[o + 2] << 16 | b[o + 3] << 24
+    return b[o] | b[o + 1] << 8 | b[o + 2] << 16 | b[o + 3] << 24  # offsets: below 2^24
 
 
 def _put32(b, o, v):
@@ -40,8 +43,19 @@ def _put32(b, o, v):
     b[o + 3] = (v >> 24) & 0xFF
 
 
+def _copy_in(mem, d, src, n):
+    """mem[d:d+n] = src[0:n] (slices would allocate a slice object on 1.25)."""
+    for i in range(n):
+        mem[d + i] = src[i]
+
+
+def _copy_out(mem, s, dst, n):
+    for i in range(n):
+        dst[i] = mem[s + i]
+
+
 class RamFile:
-    """A handle on one area of a file: seek, readinto, read, write, flush, close.
+    """A handle on one area of a file: seek, tell, readinto, read, write, flush, close.
 
     write() past the capacity writes what fits and returns the count, like a full disk.
     """
@@ -53,51 +67,46 @@ class RamFile:
         self.pos = 0
 
     def _base(self):
-        return self.st.area_base(self.entry, self.area)
+        return self.st.area_base(self.entry, self.area) + self.pos
+
+    def _length(self):
+        return self.st.length(self.entry, self.area)
 
     def seek(self, pos, whence=0):
         if whence == 2:
-            pos += self.st.length(self.entry, self.area)
+            pos += self._length()
         self.pos = pos
         return pos
 
     def tell(self):
         return self.pos
 
-    def readinto(self, buf, n=-1):
-        st = self.st
-        avail = st.length(self.entry, self.area) - self.pos
-        if n < 0 or n > len(buf):
+    def readinto(self, buf):
+        n = self._length() - self.pos
+        if n > len(buf):
             n = len(buf)
-        if n > avail:
-            n = avail if avail > 0 else 0
-        mem = st.mem
-        s = self._base() + self.pos
-        for i in range(n):
-            buf[i] = mem[s + i]
+        if n < 0:
+            n = 0
+        _copy_out(self.st.mem, self._base(), buf, n)
         self.pos += n
         return n
 
     def read(self, n=-1):
-        avail = self.st.length(self.entry, self.area) - self.pos
+        avail = self._length() - self.pos
         buf = bytearray(avail if n < 0 or n > avail else n)
         self.readinto(buf)
         return bytes(buf)
 
-    def write(self, buf, n=-1):
-        st = self.st
-        if n < 0:
+    def write(self, buf):
+        n = self.st.capacity(self.entry) - self.pos
+        if n > len(buf):
             n = len(buf)
-        room = st.capacity(self.entry) - self.pos
-        if n > room:
-            n = room if room > 0 else 0
-        mem = st.mem
-        d = self._base() + self.pos
-        for i in range(n):
-            mem[d + i] = buf[i]
+        if n < 0:
+            n = 0
+        _copy_in(self.st.mem, self._base(), buf, n)
         self.pos += n
-        if self.pos > st.length(self.entry, self.area):
-            st.set_length(self.entry, self.area, self.pos)
+        if self.pos > self._length():
+            self.st.set_length(self.entry, self.area, self.pos)
         return n
 
     def flush(self):
@@ -109,7 +118,7 @@ class RamFile:
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, a, b, c):
         self.close()
 
 
@@ -119,17 +128,17 @@ class RamStorage:
         self.root = "ram"
         self.max_files = max_files
         self._data = _HEADER + _ENTRY * max_files
-        self._index = {}  # name -> entry number
-        self._handles = {}  # (name, area) -> RamFile, made once
+        self._names = [None] * max_files  # entry -> name (str), as created
+        self._handles = [None] * max_files  # entry -> [RamFile A, RamFile B], made once
         mem = region
         if mem[0:4] != _MAGIC or mem[4] != max_files:
             self.format()
-        for e in range(mem[5]):
+        for e in range(mem[5]):  # files of an earlier run (a soft reset keeps the region)
             o = _HEADER + _ENTRY * e
             n = 0
             while n < _NAME and mem[o + n]:
                 n += 1
-            self._index[bytes(mem[o:o + n]).decode()] = e
+            self._adopt(e, bytes(mem[o:o + n]).decode())
 
     def format(self):
         """Empty the region's directory (the data areas are reused from the start)."""
@@ -138,10 +147,21 @@ class RamStorage:
             mem[i] = 0
         mem[0:4] = _MAGIC
         mem[4] = self.max_files
-        self._index = {}
-        self._handles = {}
+        for e in range(self.max_files):
+            self._names[e] = self._handles[e] = None
+
+    def _adopt(self, e, name):
+        self._names[e] = name
+        self._handles[e] = [RamFile(self, e, 0), RamFile(self, e, 1)]
 
     # --- entries ------------------------------------------------------------------
+    def _find(self, name):
+        names = self._names
+        for e in range(self.mem[5]):
+            if names[e] == name:
+                return e
+        return -1
+
     def _entry(self, e):
         return _HEADER + _ENTRY * e
 
@@ -167,6 +187,12 @@ class RamStorage:
     def _current(self, e):
         return self.mem[self._entry(e) + 27]
 
+    def _flags(self, e):
+        return self.mem[self._entry(e) + 31]
+
+    def _set_flags(self, e, flags):
+        self.mem[self._entry(e) + 31] = flags
+
     def used(self):
         """Bytes of the region handed out so far."""
         end = self._data
@@ -181,11 +207,9 @@ class RamStorage:
         mem = self.mem
         e = mem[5]
         raw = name.encode()
-        if e >= self.max_files or len(raw) > _NAME:
-            raise OSError(28)  # ENOSPC
         base = self.used()
-        if base + areas * size > len(mem):
-            raise OSError(28)
+        if e >= self.max_files or len(raw) > _NAME or base + areas * size > len(mem):
+            raise OSError(28)  # ENOSPC
         o = self._entry(e)
         for i in range(_ENTRY):
             mem[o + i] = 0
@@ -195,14 +219,11 @@ class RamStorage:
         _put32(mem, o + 20, size)
         mem[o + 31] = _TWO if areas == 2 else 0
         mem[5] = e + 1
-        self._index[name] = e
+        self._adopt(e, name)
         return e
 
-    def _handle(self, name, area):
-        key = (name, area)
-        h = self._handles.get(key)
-        if h is None:
-            h = self._handles[key] = RamFile(self, self._index[name], area)
+    def _handle(self, e, area):
+        h = self._handles[e][area]
         h.pos = 0
         return h
 
@@ -210,46 +231,57 @@ class RamStorage:
     def path(self, name):
         return "ram:" + name
 
+    def reserve(self, name, size):
+        """Make room for a file written with open_new/commit later (at start-up: the
+        first save then allocates nothing)."""
+        if self._find(name) < 0:
+            self._create(name, size, 2)
+
     def exists(self, name):
-        e = self._index.get(name)
-        return e is not None and self.mem[self._entry(e) + 31] & _EXISTS != 0
+        e = self._find(name)
+        return e >= 0 and self._flags(e) & _EXISTS != 0
 
     def open(self, name, mode="rb", size=DEFAULT_SIZE):
-        e = self._index.get(name)
-        if e is None:
+        e = self._find(name)
+        if e < 0:
             if "r" in mode and "+" not in mode:
                 raise OSError(2)  # ENOENT
             e = self._create(name, size, 1)
-        h = self._handle(name, self._current(e))
+        elif not self._flags(e) & _EXISTS and "w" not in mode and "+" not in mode:
+            raise OSError(2)  # reserved, never committed
+        return self._opened(e, mode)
+
+    def _opened(self, e, mode):
+        h = self._handle(e, self._current(e))
         if "w" in mode:
             self.set_length(e, h.area, 0)
-        self.mem[self._entry(e) + 31] |= _EXISTS
+        self._set_flags(e, self._flags(e) | _EXISTS)
         return h
 
     def open_new(self, name, size=DEFAULT_SIZE):
         """A handle on the area not in use; commit(name) makes it the file."""
-        e = self._index.get(name)
-        if e is None:
+        e = self._find(name)
+        if e < 0:
             e = self._create(name, size, 2)
-        elif not self.mem[self._entry(e) + 31] & _TWO:
+        elif not self._flags(e) & _TWO:
             raise OSError(22)  # EINVAL: made by open(), it has one area
-        h = self._handle(name, 1 - self._current(e))
+        h = self._handle(e, 1 - self._current(e))
         self.set_length(e, h.area, 0)
         return h
 
     def commit(self, name):
-        e = self._index[name]
+        e = self._find(name)
         o = self._entry(e)
         self.mem[o + 27] = 1 - self.mem[o + 27]
         self.mem[o + 31] |= _EXISTS
 
     def discard_new(self, name):
-        e = self._index.get(name)
-        if e is not None:
+        e = self._find(name)
+        if e >= 0:
             self.set_length(e, 1 - self._current(e), 0)
 
     def remove(self, name):
-        e = self._index.get(name)
-        if e is not None:
+        e = self._find(name)
+        if e >= 0:
             self.set_length(e, self._current(e), 0)
-            self.mem[self._entry(e) + 31] &= ~_EXISTS
+            self._set_flags(e, self._flags(e) & ~_EXISTS)

@@ -24,7 +24,7 @@ test can run the steady state between micropython.heap_lock() and heap_unlock().
     b.watch = fn(msgid, payload) called for every vehicle frame (tests that inspect fields)
     b.rx                         the Parser reading the vehicle's output (its version, sysid)
 
-    heap_requests(fn, *args)     bytes fn requested from the heap, unlocked (mem_total) and
+    heap_requests(fn[, arg])     bytes fn requested from the heap, unlocked (mem_total) and
                                  locked (heap_lock): every hot-path test's check
 
 LoopTransport is the transport face (readinto/write/bytes_per_s/name/close) over two
@@ -45,8 +45,19 @@ _MSG_COMMAND_LONG = 76
 _MSG_COMMAND_ACK = 77
 
 
-def heap_requests(fn, *args):
-    """Run fn(*args) twice and return the bytes it requested from the heap (0 passes).
+_NO_ARG = object()
+
+
+def _call(fn, arg):
+    # fn(*args) would build a tuple: on MicroPython a star-args call allocates.
+    if arg is _NO_ARG:
+        fn()
+    else:
+        fn(arg)
+
+
+def heap_requests(fn, arg=_NO_ARG):
+    """Run fn() (or fn(arg)) twice and return the bytes it requested from the heap (0 passes).
 
     First unlocked, counted with micropython.mem_total(): that sees the frame states the
     VM puts on the heap for functions with many locals, which under heap_lock() silently
@@ -57,17 +68,17 @@ def heap_requests(fn, *args):
     try:
         import micropython
     except ImportError:
-        fn(*args)
+        _call(fn, arg)
         return 0
     if not hasattr(micropython, "mem_total"):
-        fn(*args)
+        _call(fn, arg)
         return 0
     before = micropython.mem_total()
-    fn(*args)
+    _call(fn, arg)
     requested = micropython.mem_total() - before
     micropython.heap_lock()
     try:
-        fn(*args)
+        _call(fn, arg)
     finally:
         micropython.heap_unlock()
     return requested

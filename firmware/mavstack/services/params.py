@@ -111,6 +111,8 @@ class Params(ParamTable):
         for link in ep.links:
             self._link_state(link)
         self._load(True)
+        if getattr(ep, "storage", None) is not None:
+            ep.storage.reserve(_FILE, len(self._image))  # the first save allocates nothing
         if self.sysid_param:
             self.put(self.index(self.sysid_param), ep.sysid)
 
