@@ -102,3 +102,7 @@ class StandingVehicle:
         tm.global_position(self.LAT, self.LON, self.ALT_MM, 0, 0, 0, 0, 0)
         tm.gps_raw(3, self.LAT, self.LON, self.ALT_MM, 100, 100, 0, 0, 12)
         tm.vfr_hud(z, z, 0, 0, z, z)
+
+
+def application(ep):
+    return StandingVehicle(ep)
