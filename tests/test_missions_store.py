@@ -171,6 +171,27 @@ def test_corrupt_store_reported_by_statustext(tmp_path):
 
 
 # --- MISSION_ITEM's float degrees and MISSION_ITEM_INT's integers ------------------
+# The service converts in place, in the record's bytes (missions._fix, missions._unfix:
+# small ints only, for 32-bit boards); these wrap them as int -> int functions.
+NOT_A_NUMBER = None
+
+
+def to_fixed(b, scale_e):
+    """float32 bytes b (degrees, or metres where scale_e is 4) -> the int32, NOT_A_NUMBER
+    for NaN, infinities and values beyond int32 (the field is then 0)."""
+    rec = bytearray(b)
+    if not service._fix(rec, 0, scale_e == 4):
+        assert rec == bytes(4)
+        return NOT_A_NUMBER
+    return struct.unpack("<i", rec)[0]
+
+
+def to_float(v, scale_e):
+    """int32 v -> the bits of the float32 the service sends for it."""
+    buf = bytearray(struct.pack("<i", v))
+    service._unfix(buf, 0, scale_e == 4)
+    return struct.unpack("<I", buf)[0]
+
 
 def _exact(bits):
     return Fraction(struct.unpack("<f", struct.pack("<I", bits))[0])
@@ -186,23 +207,38 @@ def _nearest(q):
 @settings(max_examples=1000, deadline=None)
 @given(st.integers(0, 0xFFFFFFFF), st.sampled_from([7, 4]))
 def test_float_to_fixed_is_exact(bits, scale_e):
-    got = service._to_fixed(struct.pack("<I", bits), 0, scale_e)
+    got = to_fixed(struct.pack("<I", bits), scale_e)
     e = (bits >> 23) & 0xFF
     if e == 0xFF:
-        assert got == service._NOT_A_NUMBER
+        assert got == NOT_A_NUMBER
         return
     want = _nearest(_exact(bits) * 10 ** scale_e)
     if abs(want) > 0x7FFFFFFF:
-        assert got == service._NOT_A_NUMBER
+        assert got == NOT_A_NUMBER
     else:
         assert got == want
+
+
+def test_float_to_fixed_every_exponent():
+    """Every exponent (subnormals, the int32 limits, NaN), the mantissa's edges, both signs."""
+    for scale_e in (7, 4):
+        for e in range(256):
+            for m in (0, 1, 0x400000, 0x7FFFFF, 0x2AAAAA, 0x555555):
+                for sign in (0, 0x80000000):
+                    bits = sign | e << 23 | m
+                    got = to_fixed(struct.pack("<I", bits), scale_e)
+                    if e == 0xFF:
+                        assert got == NOT_A_NUMBER
+                        continue
+                    want = _nearest(_exact(bits) * 10 ** scale_e)
+                    assert got == (NOT_A_NUMBER if abs(want) > 0x7FFFFFFF else want), (hex(bits), scale_e)
 
 
 def test_float_to_fixed_examples():
     for deg in (47.397742, -122.4194, 180.0, -180.0, 90.0, 0.0, 1e-9, 214.7483647):
         b = struct.pack("<f", deg)
         f = struct.unpack("<f", b)[0]
-        got = service._to_fixed(b, 0, 7)
+        got = to_fixed(b, 7)
         if abs(f) * 1e7 < 2 ** 31:
             assert got == round(Fraction(f) * 10 ** 7)
 
@@ -210,7 +246,7 @@ def test_float_to_fixed_examples():
 @settings(max_examples=1000, deadline=None)
 @given(st.integers(-0x80000000, 0x7FFFFFFF), st.sampled_from([7, 4]))
 def test_fixed_to_float_is_correctly_rounded(v, scale_e):
-    bits = service._to_float(v, scale_e)
+    bits = to_float(v, scale_e)
     want = Fraction(v, 10 ** scale_e)
     got = _exact(bits)
     # No float32 lies closer to v / 10**scale_e (ties: the even one).
@@ -231,8 +267,12 @@ def test_seed_coordinates_round_trip():
         lat = struct.unpack("<f", struct.pack("<f", rng.uniform(-90, 90)))[0]
         if abs(lat) < 1:  # below 1 degree float32 is finer than 1e-7: no longer a round trip
             continue
-        fixed = service._to_fixed(struct.pack("<f", lat), 0, 7)
-        assert struct.unpack("<f", struct.pack("<I", service._to_float(fixed, 7)))[0] == lat
+        fixed = to_fixed(struct.pack("<f", lat), 7)
+        assert struct.unpack("<f", struct.pack("<I", to_float(fixed, 7)))[0] == lat
+
+
+FLOATS = (47.397742, -8.545594, 179.99999, -0.000123, 1e-30, 3e9, -122.4, 151.2, 179.9, -180.0, 214.74)
+FIXED = (473977420, -85455940, 1, -1, 2147483647, -2147483648, 0, -1224000000, 1512000000, 1799000000)
 
 
 def test_conversions_agree_on_micropython():
@@ -240,16 +280,22 @@ def test_conversions_agree_on_micropython():
         "import struct\n"
         "from mavstack.services import missions as m\n"
         "out = []\n"
-        "for v in (47.397742, -8.545594, 179.99999, -0.000123, 1e-30, 3e9):\n"
-        "    out.append(m._to_fixed(struct.pack('<f', v), 0, 7))\n"
-        "for v in (473977420, -85455940, 1, -1, 2147483647, -2147483648, 0):\n"
-        "    out.append(m._to_float(v, 7))\n"
-        "print(out)\n"
+        "for v in %r:\n"
+        "    for local in (False, True):\n"
+        "        b = bytearray(struct.pack('<f', v))\n"
+        "        ok = m._fix(b, 0, local)\n"
+        "        out.append(struct.unpack('<i', b)[0] if ok else None)\n"
+        "for v in %r:\n"
+        "    for local in (False, True):\n"
+        "        b = bytearray(struct.pack('<i', v))\n"
+        "        m._unfix(b, 0, local)\n"
+        "        out.append(struct.unpack('<I', b)[0])\n"
+        "print(out)\n" % (FLOATS, FIXED)
     )
     r = run_mpy(code)
     assert r.returncode == 0, r.stderr
-    want = [service._to_fixed(struct.pack("<f", v), 0, 7) for v in (47.397742, -8.545594, 179.99999, -0.000123, 1e-30, 3e9)]
-    want += [service._to_float(v, 7) for v in (473977420, -85455940, 1, -1, 2147483647, -2147483648, 0)]
+    want = [to_fixed(struct.pack("<f", v), k) for v in FLOATS for k in (7, 4)]
+    want += [to_float(v, k) for v in FIXED for k in (7, 4)]
     assert r.stdout.strip() == str(want)
 
 

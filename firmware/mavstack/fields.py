@@ -61,3 +61,34 @@ def f32_to_int(p, o):
         shift = e - 150
         v = m << shift if shift >= 0 else (m + (1 << (-shift - 1))) >> -shift
     return -v if hi & 0x8000 else v
+
+
+def i32_cmp(p, o, hi, lo):
+    """Compare the int32 at p[o] with hi * 65536 + lo (hi signed, lo 0..0xFFFF) -> -1, 0, 1.
+
+    By 16-bit halves, signed high half first: on a 32-bit port an int of 2^30 or more
+    is a heap object, and coordinates in 1e7 degrees reach 1.8e9.
+    """
+    h = p[o + 2] | p[o + 3] << 8
+    if h & 0x8000:
+        h -= 0x10000
+    if h == hi:
+        h = p[o] | p[o + 1] << 8
+        hi = lo
+    return (h > hi) - (h < hi)
+
+
+def f32_to_small(p, o):
+    """f32_to_int saturated at +-(2^30 - 1), read by 16-bit halves: always a small int on
+    a 32-bit port, for fields where every huge value means the same (indices, counts)."""
+    hi = p[o + 2] | p[o + 3] << 8
+    e = (hi >> 7) & 0xFF
+    if e == 0xFF or e < 126:
+        return 0
+    if e > 156:  # |f| >= 2^30
+        v = 0x3FFFFFFF
+    else:
+        v = (hi & 0x7F | 0x80) << 16 | p[o + 1] << 8 | p[o]
+        e -= 150
+        v = v << e if e >= 0 else (v + (1 << (-e - 1))) >> -e
+    return -v if hi & 0x8000 else v

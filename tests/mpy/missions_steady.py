@@ -1,26 +1,47 @@
-"""Mission transfers under micropython.heap_lock().
+"""Mission transfers allocate nothing, on 32-bit boards too.
 
-    missions_steady.py STORAGE_DIR N
+    missions_steady.py STORAGE N [own]  STORAGE: a directory, or "ram" (storage_ram.py,
+                                        the emulated boards' storage)
 
-Builds the missions service (with its runner) in-process on the bench's in-memory link,
-warms up with one round of everything, then, with the heap locked: an upload of N items
-in the seed's MISSION_ITEM form (float coordinates, converted on the way in), its
-download with MISSION_REQUEST (converted on the way out), an upload as MISSION_ITEM_INT
-and its download with MISSION_REQUEST_INT, a partial write and a partial read, a clear,
-and an upload the ground station abandons (re-requests, then the vehicle cancels).
-Every frame the vehicle sends is checked as it arrives. Prints
-`ok uploads=N items=N requests=N` or what went wrong.
+Builds the missions service (with its runner) in-process on the bench's in-memory link
+and warms up with one round of everything. Then harness.heap_requests runs the round
+twice, counting heap requests with micropython.mem_total() and then under
+micropython.heap_lock(): an upload of N items in the seed's MISSION_ITEM form (float
+degrees, converted to 1e7 integers on the way in), its download with MISSION_REQUEST
+(converted back), an upload as MISSION_ITEM_INT and its download with
+MISSION_REQUEST_INT, a partial write and a partial read, a clear, and an upload the
+ground station abandons (re-requests, then the vehicle cancels). Every frame the
+vehicle sends is checked as it arrives; items must come back bit for bit.
+
+The coordinates are where a 32-bit board's small ints end (2^30 in 1e7 degrees is
+107.37 degrees): longitudes -122.4, 151.2, 179.9 and -180, the latitude bounds +-90,
+altitudes down to -400 m. The mission store is seeded with a generation just below
+2^30, so the commits of the round carry it past 2^30; a second store, seeded at
+0xC000FFFF, loads and commits under the same check.
+
+Prints `ok requested=0 uploads=5 items=2N+5 requests=2N+9 gen=XXXXXXXX gen_store=XXXXXXXX`
+(the generations reached, hex), or what went wrong: `fail requested=B` followed by
+the bytes each stage asked the heap for (frame states of functions over 11 words
+included) and the rest of the `ok` line, when only that check failed.
+
+With `own`, what the missions code asks for itself is counted apart: its handlers and
+tick are metered, less what the code they call asks for (link.begin/send, the storage
+files, the copy kernel), in one more pass (unlocked: under heap_lock, mem_total counts
+the attempts too), and `ok own=0 requested=B ...` needs only that to be 0 (B: the whole
+stack's, printed for the work on the shared paths; the generations are 4 and 1 higher).
 
 (The ground station lives in a class: calling a closure over more than a few
-variables allocates on MicroPython, calling a method does not.)
+variables allocates on MicroPython, calling a method does not. Its frames are made
+once and patched in place (seq, x, y, z), so that N items cost a few bytes each; its
+functions, like the vehicle's, keep to 11 words of locals and stack.)
 """
 import struct
 import sys
 
-import micropython
-
-from harness import Bench
-from mavstack.fields import u16, i32, f32_bits
+from harness import Bench, heap_requests
+from mavstack.fields import u16
+from mavstack.kernels import crc16
+from mavstack.services.mission_store import HEADER_SIZE, RECORD_SIZE, MissionStore
 
 _COUNT = 44
 _ITEM = 39
@@ -32,12 +53,58 @@ _ITEM_INT = 73
 _CLEAR_ALL = 45
 _WRITE_PARTIAL = 38
 _REQUEST_PARTIAL = 37
-LAT = 473977420
-LON = 85455940
+_P = 10  # a MAVLink 2 frame's payload offset
+_XYZ = 26  # x, y, z (12 bytes) in an item frame: payload offset 16
+
+# Item k takes its place from k % 4, moved 10 (1e-4 degrees) toward 0 per round of four:
+# the first four sit on the bounds. Float degrees: |lat| >= 1, where float32 is coarser
+# than 1e-7, so they go in and come out bit for bit.
+LAT_E7 = (473977420, -338567840, 900000000, -900000000)
+LON_E7 = (-1224000000, 1512000000, 1799000000, -1800000000)
+LAT = (47.397742, -33.856784, 90.0, -89.99)
+LON = (-122.4, 151.2, 179.9, -180.0)
+Z = (-400.0, 10.0, -400.0, 35.5)
+STAGES = ("upload_float", "download_float", "upload_int", "download_int", "partial", "abandoned", "gen_store")
+GEN = 0x3FFFFFFA  # the mission store's seeded generation: the round's commits pass 2^30
+STORE_GEN = 0xC000FFFF
 
 
-def _bits(v):
-    return struct.unpack("<I", struct.pack("<f", v))[0]
+try:  # for the `own` meters
+    from micropython import mem_total as _mem
+except ImportError:  # CPython, or a port without it
+    _mem = None
+
+
+def _toward_zero(v, d):
+    return v - d if v > 0 else v + d
+
+
+def _same(a, ao, b, bo, n):
+    while n:
+        n -= 1
+        if a[ao + n] != b[bo + n]:
+            return False
+    return True
+
+
+def seed(storage, name, gen, size):
+    """Slot NAME.1 holds a valid empty plan (type 0) of generation gen, NAME.0 nothing."""
+    blank = bytearray(HEADER_SIZE)
+    if storage.exists(name + ".0"):
+        f = storage.open(name + ".0", "r+b", size=size)
+        f.write(blank)
+        f.close()
+    name += ".1"
+    h = bytearray(HEADER_SIZE)
+    h[0:4] = b"MSN\x01"
+    h[5] = RECORD_SIZE
+    struct.pack_into("<HIH", h, 6, 0, gen, 0xFFFF)  # count, generation, CRC of no records
+    struct.pack_into("<H", h, 14, crc16(h, 0, 14, 0xFFFF))
+    f = storage.open(name, "r+b" if storage.exists(name) else "wb", size=size)
+    f.seek(0)
+    f.write(h)
+    f.flush()
+    f.close()
 
 
 class Ground:
@@ -45,27 +112,29 @@ class Ground:
         self.b = b
         self.n = n
         g = b.gcs(255, 190)
+        # x, y, z of each item, 12 bytes an item, as MISSION_ITEM_INT and as MISSION_ITEM.
+        self.xyz_int = bytearray(12 * n)
+        self.xyz_flt = bytearray(12 * n)
+        for k in range(n):
+            i = k % 4
+            struct.pack_into("<iif", self.xyz_int, 12 * k, _toward_zero(LAT_E7[i], 10 * (k // 4)),
+                             _toward_zero(LON_E7[i], 10 * (k // 4)), Z[i])
+            struct.pack_into("<fff", self.xyz_flt, 12 * k, _toward_zero(LAT[i], 1e-4 * (k // 4)),
+                             _toward_zero(LON[i], 1e-4 * (k // 4)), Z[i])
         one, two, ten, zero = 1.0, 2.0, 10.0, 0.0
-        lat_f = [LAT / 1e7 + 1e-6 * k for k in range(n)]
-        lon_f = [LON / 1e7 - 1e-6 * k for k in range(n)]
-        self.lat_bits = [_bits(v) for v in lat_f]
-        self.lon_bits = [_bits(v) for v in lon_f]
-        self.tag_bits = _bits(one)
+        self.item = g.frame(_ITEM_INT, one, two, zero, zero, 0, 0, ten, 0, 16, 1, 1, 3, 0, 1, 0)
+        self.fitem = g.frame(_ITEM, one, two, zero, zero, zero, zero, ten, 0, 16, 1, 1, 3, 0, 1, 0)
+        self.req = g.frame(_REQUEST_INT, 0, 1, 1, 0)
+        self.freq = g.frame(_REQUEST, 0, 1, 1, 0)
         self.count = g.frame(_COUNT, n, 1, 1, 0)
         self.count3 = g.frame(_COUNT, 3, 1, 1, 0)
-        self.items = [g.frame(_ITEM_INT, one, two, zero, zero, LAT + 10 * k, LON - 10 * k, ten, k, 16, 1, 1, 3, 0, 1, 0)
-                      for k in range(n)]
-        self.fitems = [g.frame(_ITEM, one, two, zero, zero, lat_f[k], lon_f[k], ten, k, 16, 1, 1, 3, 0, 1, 0)
-                       for k in range(n)]
         self.request_list = g.frame(_REQUEST_LIST, 1, 1, 0)
-        self.reqs = [g.frame(_REQUEST_INT, k, 1, 1, 0) for k in range(n)]
-        self.freqs = [g.frame(_REQUEST, k, 1, 1, 0) for k in range(n)]
         self.ack = g.frame(_ACK, 1, 1, 0, 0)
         self.clear = g.frame(_CLEAR_ALL, 1, 1, 0)
         self.write_partial = g.frame(_WRITE_PARTIAL, 2, 4, 1, 1, 0)
         self.request_partial = g.frame(_REQUEST_PARTIAL, 1, 5, 1, 1, 0)
         # What the vehicle sent.
-        self.req = -1
+        self.req_seq = -1
         self.reqs_seen = 0
         self.ack_type = -1
         self.acks = 0
@@ -73,11 +142,14 @@ class Ground:
         self.items_seen = 0
         self.item_seq = -1
         self.bad = 0
+        self.err = 0
+        self.heap = [0] * len(STAGES)  # bytes each stage asked the heap for
         b.watch = self.watch
 
+    # --- the vehicle's frames ---------------------------------------------------
     def watch(self, msgid, p):
         if msgid == _REQUEST_INT or msgid == _REQUEST:
-            self.req = u16(p, 0)
+            self.req_seq = u16(p, 0)
             self.reqs_seen += 1
         elif msgid == _ACK:
             self.ack_type = p[2]
@@ -85,65 +157,79 @@ class Ground:
         elif msgid == _COUNT:
             self.count_seen = u16(p, 0)
         elif msgid == _ITEM_INT or msgid == _ITEM:
-            seq = u16(p, 28)
-            self.item_seq = seq
-            self.items_seen += 1
-            if f32_bits(p, 0) != self.tag_bits or u16(p, 30) != 16:
-                self.bad += 1
-            if msgid == _ITEM_INT:
-                if i32(p, 16) != LAT + 10 * seq or i32(p, 20) != LON - 10 * seq:
-                    self.bad += 1
-            elif f32_bits(p, 16) != self.lat_bits[seq] or f32_bits(p, 20) != self.lon_bits[seq]:
-                self.bad += 1
+            self.got_item(msgid, p)
 
-    def upload(self, frames):
-        b = self.b
+    def got_item(self, msgid, p):
+        seq = u16(p, 28)
+        self.item_seq = seq
+        self.items_seen += 1
+        # param1 as sent, command NAV_WAYPOINT, and x, y, z bit for bit in the form asked for
+        if not _same(p, 0, self.item, _P, 4) or u16(p, 30) != 16:
+            self.bad += 1
+        elif not _same(p, 16, self.xyz_int if msgid == _ITEM_INT else self.xyz_flt, 12 * seq, 12):
+            self.bad += 1
+
+    # --- the ground station's side ----------------------------------------------
+    def put_item(self, f, xyz, k):
+        """Item k's seq, x, y, z into frame f (MISSION_ITEM_INT or MISSION_ITEM)."""
+        f[_P + 28] = k & 0xFF
+        f[_P + 29] = k >> 8
+        o = 12 * k
+        for j in range(12):
+            f[_XYZ + j] = xyz[o + j]
+
+    def send_item(self, f, xyz, k):
+        self.put_item(f, xyz, k)
+        self.b.send(f)
+        self.b.run(2)
+
+    def upload(self, f, xyz):
         acks = self.acks
-        b.send(self.count)
-        b.run(2)
-        for k in range(self.n):
-            if self.req != k:
+        self.b.send(self.count)
+        self.b.run(2)
+        err = self.send_items(f, xyz, 0, self.n)
+        if err == 0 and (self.acks != acks + 1 or self.ack_type != 0):
+            err = 2000 + self.ack_type
+        return err
+
+    def send_items(self, f, xyz, k, end):
+        """Items k .. end - 1, each once the vehicle asks for it."""
+        while k < end:
+            if self.req_seq != k:
                 return 1000 + k
-            b.send(frames[k])
-            b.run(2)
-        if self.acks != acks + 1 or self.ack_type != 0:
-            return 2000 + self.ack_type
+            self.send_item(f, xyz, k)
+            k += 1
         return 0
 
-    def download(self, frames):
-        b = self.b
+    def download(self, f):
         seen = self.items_seen
-        b.send(self.request_list)
-        b.run(2)
+        self.b.send(self.request_list)
+        self.b.run(2)
         if self.count_seen != self.n:
             return 3000
         for k in range(self.n):
-            b.send(frames[k])
-            b.run(2)
+            f[_P] = k & 0xFF
+            f[_P + 1] = k >> 8
+            self.b.send(f)
+            self.b.run(2)
             if self.item_seq != k or self.items_seen != seen + k + 1:
                 return 4000 + k
-        b.send(self.ack)
-        b.run(2)
+        self.b.send(self.ack)
+        self.b.run(2)
         return 0 if self.bad == 0 else 5000 + self.bad
 
     def partial(self):
-        b = self.b
-        b.send(self.write_partial)
-        b.run(2)
-        for k in (2, 3, 4):
-            if self.req != k:
-                return 6000 + k
-            b.send(self.items[k])
-            b.run(2)
-        if self.ack_type != 0:
+        self.b.send(self.write_partial)
+        self.b.run(2)
+        if self.send_items(self.item, self.xyz_int, 2, 5) or self.ack_type != 0:
             return 6100
         seen = self.items_seen
-        b.send(self.request_partial)
-        b.run(50)
+        self.b.send(self.request_partial)
+        self.b.run(50)
         if self.items_seen != seen + 5 or self.item_seq != 5 or self.bad:
             return 6200
-        b.send(self.clear)
-        b.run(2)
+        self.b.send(self.clear)
+        self.b.run(2)
         return 6300 if self.ack_type != 0 else 0
 
     def abandoned(self):
@@ -155,28 +241,211 @@ class Ground:
         return 0
 
     def session(self):
-        return (self.upload(self.fitems) or self.download(self.freqs) or self.upload(self.items)
-                or self.download(self.reqs) or self.partial() or self.abandoned())
+        """One round of everything; the counts and self.err are this round's."""
+        self.reqs_seen = self.acks = self.items_seen = 0
+        self.err = 0
+        for k in range(len(STAGES) - 1):
+            if not self.err:
+                self.stage(k)
+
+    def stage(self, k):
+        t = _mem() if _mem is not None else 0
+        self.err = self.run_stage(k)
+        if _mem is not None:
+            self.heap[k] += _mem() - t
+
+    def run_stage(self, k):
+        if k == 0:
+            return self.upload(self.fitem, self.xyz_flt)
+        if k == 1:
+            return self.download(self.freq)
+        if k == 2:
+            return self.upload(self.item, self.xyz_int)
+        if k == 3:
+            return self.download(self.req)
+        return self.partial() if k == 4 else self.abandoned()
+
+
+class StoreCycle:
+    """A store seeded with a generation of 2^30 or more: load, stage, commit, read back."""
+
+    def __init__(self, store, heap):
+        self.store = store
+        self.heap = heap  # the Ground's: this is its last stage
+        self.rec = bytearray(RECORD_SIZE)
+        self.back = bytearray(RECORD_SIZE)
+        self.err = 0
+
+    def run(self):
+        t = _mem() if _mem is not None else 0
+        self.cycle()
+        if _mem is not None:
+            self.heap[len(STAGES) - 1] += _mem() - t
+
+    def cycle(self):
+        s = self.store
+        s.load()
+        self.err = 0 if not s.corrupt else 1
+        s.begin()
+        for k in range(3):
+            self.rec[0] = k
+            s.put(k, self.rec)
+        if not (s.seal(3) and s.commit()):
+            self.err = 2
+        for k in range(3):
+            if not s.read(k, self.back) or self.back[0] != k:
+                self.err = 3
+
+
+class Meter:
+    """Heap requests inside the missions service's entry points (own), and inside the
+    calls it makes out of it (out, subtracted from own)."""
+
+    def __init__(self):
+        self.own = 0
+        self.out = 0
+
+
+class Own:
+    """Wraps a missions entry point: handler(link, payload) or tick(now)."""
+
+    def __init__(self, meter, fn):
+        self.m = meter
+        self.fn = fn
+
+    def call1(self, a):
+        t = _mem() - self.m.out
+        self.fn(a)
+        self.m.own += _mem() - self.m.out - t
+
+    def call2(self, a, b):
+        t = _mem() - self.m.out
+        self.fn(a, b)
+        self.m.own += _mem() - self.m.out - t
+
+
+class Out:
+    """Wraps a call out of missions: its requests are not the service's."""
+
+    def __init__(self, meter, fn):
+        self.m = meter
+        self.fn = fn
+
+    def call0(self):
+        t = _mem()
+        r = self.fn()
+        self.m.out += _mem() - t
+        return r
+
+    def call1(self, a):
+        t = _mem()
+        r = self.fn(a)
+        self.m.out += _mem() - t
+        return r
+
+
+_copy = None  # the copy kernel, metered by copy_out (a function: 4 arguments in a method's
+_meter = None  # frame would take more than 11 words, and its frame would count as own)
+
+
+def copy_out(a, b, c, d):
+    t = _mem()
+    _copy(a, b, c, d)
+    _meter.out += _mem() - t
+
+
+class OutFile:
+    """A storage file whose calls are not the service's."""
+
+    def __init__(self, meter, f):
+        self.seek = Out(meter, f.seek).call1
+        self.readinto = Out(meter, f.readinto).call1
+        self.write = Out(meter, f.write).call1
+        self.flush = Out(meter, f.flush).call0
+
+
+def meter(b, stores):
+    """Meter the missions service of bench b (its only service)."""
+    import mavstack.services.missions as module
+
+    global _copy, _meter
+    m = _meter = Meter()
+    ep = b.ep
+    for msgid in ep._handlers:
+        handlers = ep._handlers[msgid]
+        for i in range(len(handlers)):
+            handlers[i] = Own(m, handlers[i]).call2
+    missions = ep.services["missions"]
+    missions.tick = Own(m, missions.tick).call1
+    for link in ep.links:
+        link.begin = Out(m, link.begin).call0
+        link.send = Out(m, link.send).call1
+    _copy = module.copy
+    module.copy = copy_out
+    for store in stores:
+        if store is not None:
+            store._files = [OutFile(m, f) for f in store._files]
+    return m
+
+
+def _hex(store):
+    return "%04x%04x" % (store.gen_hi, store.gen_lo)
 
 
 def main():
     n = int(sys.argv[2])
     b = Bench(services=("missions",), storage=sys.argv[1])
-    g = Ground(b, n)
-    err = g.session()  # warm-up: whatever is allocated once is allocated now
-    if err:
-        print("warm-up failed", err)
+    storage = b.ep.storage
+    mission = b.ep.services["missions"].stores[0]
+    seed(storage, "mission", GEN, HEADER_SIZE + mission.capacity * RECORD_SIZE)
+    mission.load()
+    if mission.gen != GEN:
+        print("seeded generation not loaded", _hex(mission))
         return
-    g.reqs_seen = g.acks = g.items_seen = 0
-    micropython.heap_lock()
-    try:
-        err = g.session()
-    finally:
-        micropython.heap_unlock()
-    if err:
-        print("failed", err, g.req, g.ack_type)
-    else:
-        print("ok uploads=%d items=%d requests=%d" % (g.acks, g.items_seen, g.reqs_seen))
+    seed(storage, "gen", STORE_GEN, HEADER_SIZE + 8 * RECORD_SIZE)
+    g = Ground(b, n)
+    cycle = StoreCycle(MissionStore(storage, "gen", 0, 8), g.heap)
+    if cycle.store.gen != STORE_GEN:
+        print("seeded store generation not loaded", _hex(cycle.store))
+        return
+    own = None
+    if len(sys.argv) > 3 and sys.argv[3] == "own":
+        if _mem is None:
+            print("own: needs micropython.mem_total")
+            return
+        own = meter(b, b.ep.services["missions"].stores + [cycle.store])
+    g.session()  # warm-up: whatever is allocated once is allocated now
+    cycle.run()
+    if g.err or cycle.err:
+        print("warm-up failed", g.err, cycle.err)
+        return
+    if own is not None:  # a pass of its own: under heap_lock mem_total counts attempts too
+        own.own = own.out = 0
+        g.session()
+        cycle.run()
+        if g.err or cycle.err:
+            print("metered pass failed", g.err, cycle.err)
+            return
+    for k in range(len(STAGES)):
+        g.heap[k] = 0
+    requested = heap_requests(g.session)
+    if g.err:
+        print("failed", g.err, g.req_seq, g.ack_type)
+        return
+    requested += heap_requests(cycle.run)
+    if cycle.err:
+        print("store failed", cycle.err)
+        return
+    rest = "uploads=%d items=%d requests=%d gen=%s gen_store=%s" % (
+        g.acks, g.items_seen, g.reqs_seen, _hex(mission), _hex(cycle.store))
+    if own is not None:
+        print("%s own=%d requested=%d %s" % ("fail" if own.own else "ok", own.own, requested, rest))
+        return
+    if requested:
+        print("fail requested=%d %s | %s" % (requested, " ".join(
+            "%s=%d" % (STAGES[k], g.heap[k]) for k in range(len(STAGES))), rest))
+        return
+    print("ok requested=0 " + rest)
 
 
 main()

@@ -23,12 +23,18 @@ refers to.
     runner.start(first, last)         MAV_CMD_MISSION_START (also sent by ground stations)
     runner.set_current(seq, reset)    MISSION_SET_CURRENT, MAV_CMD_DO_SET_MISSION_CURRENT
     runner.on_item                    hook(runner) when the current item changes
-Decoding an item makes floats: that happens once per item, not per tick.
+Stepping (reached(), DO_JUMP, set_current) and runner.item allocate nothing, on a
+32-bit board too. An Item's command, frame, seq, is_nav ... are small ints; its
+coordinates, which reach 1.8e9 in 1e7 degrees (a heap object from 2^30 on a 32-bit
+board), are there as 16-bit halves (x_hi, x_lo, y_hi, y_lo) and in the raw record
+(item.rec). The floats (param1..4, z, lat, lon) and the ints x, y are made when first
+asked for, once per item, not per tick.
 """
 import struct
 
 from ..compat import const, ticks_diff
-from ..fields import f32_to_int
+from ..fields import f32_to_small, i16, u16
+from ..kernels import copy
 from .mission_store import RECORD_SIZE
 
 NO_MISSION = const(1)  # MISSION_STATE
@@ -47,22 +53,85 @@ _LOCAL_FRAMES = (1, 4, 7, 8, 9, 12, 20, 21)
 
 
 class Item:
-    """One mission item, decoded from its record: seq, command, frame, autocontinue,
-    param1..param4, z (floats), x, y (as stored: degrees * 1e7, metres * 1e4 in local
-    frames), lat, lon (degrees, or metres in local frames), is_nav / is_condition / is_do."""
+    """One mission item, decoded from its record.
+
+    Read without allocating: seq, command, frame, autocontinue, is_nav / is_condition /
+    is_do; rec, the 32-byte record (MISSION_ITEM_INT's fields: params and z as float32
+    bits at 0..15 and 24, x at 16 and y at 20 as int32, see mission_store.py); x and y
+    by 16-bit halves, x = x_hi * 65536 + x_lo (x_hi signed, x_lo 0..65535): compare
+    them with fields.i32_cmp(item.rec, 16, hi, lo) or do arithmetic on the halves.
+    Made on first use, then kept for the item: param1..param4, z (floats), x, y (ints as
+    stored: degrees * 1e7, metres * 1e4 in local frames), lat, lon (degrees, or metres
+    in local frames).
+    """
+
+    def __init__(self):
+        self.rec = bytearray(RECORD_SIZE)
+        self._f = None  # (param1..4, x, y, z, lat, lon) once asked for
+        self.decode(0, self.rec)
 
     def decode(self, seq, rec):
+        if rec is not self.rec:
+            copy(self.rec, rec, 0, RECORD_SIZE)
+        rec = self.rec
         self.seq = seq
-        (self.param1, self.param2, self.param3, self.param4, self.x, self.y, self.z,
-         self.command, self.frame, self.autocontinue) = struct.unpack_from("<ffffiifHBB", rec, 0)
-        scale = 1e4 if self.frame in _LOCAL_FRAMES else 1e7
-        self.lat = self.x / scale
-        self.lon = self.y / scale
-        c = self.command
+        c = rec[28] | rec[29] << 8
+        self.command = c
+        self.frame = rec[30]
+        self.autocontinue = rec[31]
         self.is_nav = c < 100 or 5000 <= c < 5200  # MAV_CMD_NAV_* ids
         self.is_condition = 100 <= c < 160
         self.is_do = 160 <= c < 250
+        self.x_hi = i16(rec, 18)
+        self.x_lo = u16(rec, 16)
+        self.y_hi = i16(rec, 22)
+        self.y_lo = u16(rec, 20)
+        self._f = None
         return self
+
+    def _floats(self):
+        f = self._f
+        if f is None:
+            f = struct.unpack_from("<ffffiif", self.rec, 0)
+            scale = 1e4 if self.frame in _LOCAL_FRAMES else 1e7
+            f = self._f = f + (f[4] / scale, f[5] / scale)
+        return f
+
+    @property
+    def param1(self):
+        return self._floats()[0]
+
+    @property
+    def param2(self):
+        return self._floats()[1]
+
+    @property
+    def param3(self):
+        return self._floats()[2]
+
+    @property
+    def param4(self):
+        return self._floats()[3]
+
+    @property
+    def x(self):
+        return self._floats()[4]
+
+    @property
+    def y(self):
+        return self._floats()[5]
+
+    @property
+    def z(self):
+        return self._floats()[6]
+
+    @property
+    def lat(self):
+        return self._floats()[7]
+
+    @property
+    def lon(self):
+        return self._floats()[8]
 
 
 class MissionRunner:
@@ -91,12 +160,13 @@ class MissionRunner:
 
     @property
     def item(self):
-        """The current item, decoded (None without a plan). Decoding makes floats, so it
-        happens here, when the application asks, not on the protocol's paths."""
+        """The current item (None without a plan): one Item, decoded again when the
+        current item changes (allocation-free; its floats are made when asked for)."""
         if not self._decoded:
-            if not self.store.read(self.current, self._rec):
+            item = self._item
+            if not self.store.read(self.current, item.rec):
                 return None
-            self._item.decode(self.current, self._rec)
+            item.decode(self.current, item.rec)
             self._decoded = True
         return self._item
 
@@ -114,14 +184,18 @@ class MissionRunner:
 
     def read(self, seq, item=None):
         """Any item of the plan, decoded (a new Item unless one is given); None if absent."""
-        if not self.store.read(seq, self._rec):
+        if item is None:
+            item = Item()
+        if not self.store.read(seq, item.rec):  # straight into the item: nothing to copy
             return None
-        return (item or Item()).decode(seq, self._rec)
+        return item.decode(seq, item.rec)
 
-    def next_nav(self, after=-1):
-        """The first NAV item after `after` (default: the current item), or None."""
+    def next_nav(self, after=-1, item=None):
+        """The first NAV item after `after` (default: the current item), or None; into
+        `item` if given (no allocation), else into a new Item."""
         seq = (self.current if after < 0 else after) + 1
-        item = Item()
+        if item is None:
+            item = Item()
         while seq < self.store.count:
             if self.read(seq, item) is not None and item.is_nav:
                 return item
@@ -249,8 +323,8 @@ class MissionRunner:
                 self._load(seq)
                 self.missions.current_changed()
                 return
-            target = f32_to_int(rec, 0)
-            repeat = f32_to_int(rec, 4)
+            target = f32_to_small(rec, 0)
+            repeat = f32_to_small(rec, 4)
             slot = self._jump_slot(seq)
             if slot >= 0 and (repeat < 0 or self._jump_done[slot] < repeat):
                 if self._jump_done[slot] < 0xFFFF:

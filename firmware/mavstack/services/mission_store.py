@@ -16,8 +16,10 @@ written), never a mix. At boot the valid slot with the higher generation wins; a
 with a damaged header or records that is not provably older than the winner makes
 the store corrupt: it is reported, wiped, and the vehicle starts with an empty plan
 (never silently with an older plan the operator had replaced).
-Staging and commit allocate nothing (the files stay open), so a transfer runs under
-micropython.heap_lock().
+Staging, commit and load() allocate nothing (the files stay open), so a transfer runs
+under micropython.heap_lock(). On a 32-bit port an int of 2^30 or more is a heap object:
+the u32 generation is kept as two 16-bit halves (gen_hi, gen_lo) and the plan id is
+written as bytes (put_plan_id); `gen` and `plan_id` make the ints for other callers.
 """
 from ..compat import const
 from ..kernels import crc16
@@ -43,7 +45,8 @@ class MissionStore:
         self.mission_type = mission_type
         self.capacity = capacity
         self.count = 0  # items in the plan in force
-        self.gen = 0  # its generation (0: nothing committed yet)
+        self.gen_hi = 0  # its generation (u32; 0: nothing committed yet), by 16-bit halves
+        self.gen_lo = 0
         self.crc = 0xFFFF  # CRC of its records
         self.corrupt = False  # found corrupt at boot (and wiped)
         self.staged_jumps = 0  # DO_JUMP items in the staged plan, after seal()
@@ -51,92 +54,121 @@ class MissionStore:
         self._staged_count = 0
         self._rec = bytearray(RECORD_SIZE)
         self._hdr = bytearray(HEADER_SIZE)
-        self._files = [self._open(storage, name + ".0"), self._open(storage, name + ".1")]
+        # What load() found in each slot, 5 ints a slot: state, generation (high half,
+        # low half), count, CRC. One list made here, so that load() makes nothing.
+        self._slots = [0] * 10
+        size = HEADER_SIZE + capacity * RECORD_SIZE
+        self._files = [self._open(storage, name + ".0", size), self._open(storage, name + ".1", size)]
         self._active = 0
-        self._load()
+        self.load()
 
     @staticmethod
-    def _open(storage, fname):
+    def _open(storage, fname, size):
+        # size: the most the file will hold. storage_ram hands out its area when the file
+        # is first made, at that size; files on a filesystem ignore it.
         if not storage.exists(fname):
-            f = storage.open(fname, "wb")
+            f = storage.open(fname, "wb", size=size)
             f.write(bytearray(HEADER_SIZE))
             f.close()
-        return storage.open(fname, "r+b")
+        return storage.open(fname, "r+b", size=size)
+
+    @property
+    def gen(self):
+        """The generation as one int (a heap object from 2^30 on a 32-bit port)."""
+        return self.gen_hi << 16 | self.gen_lo
 
     # --- boot -------------------------------------------------------------------
 
-    def _load(self):
-        states = [0, 0]
-        gens = [0, 0]
-        info = [None, None]
-        for i in range(2):
-            states[i], gens[i], info[i] = self._check(self._files[i])
-        best = -1
-        for i in range(2):
-            if states[i] == VALID and (best < 0 or gens[i] > gens[best]):
-                best = i
-        newest = gens[best] if best >= 0 else 0
-        for i in range(2):
-            # A damaged slot that is provably older than the winner is a harmless leftover.
-            if states[i] == GARBAGE or (states[i] == DAMAGED and (best < 0 or gens[i] > newest)):
-                self.corrupt = True
-        top = max(gens[0], gens[1])
-        if self.corrupt:
-            for f in self._files:
-                f.seek(0)
-                f.write(bytearray(HEADER_SIZE))
-                f.flush()
-            self.gen = top
-            self._active = 0
-            return
-        if best >= 0:
-            self._active = best
-            self.gen = gens[best]
-            self.count, self.crc = info[best]
+    def load(self):
+        """Pick the plan in force: the valid slot with the higher generation. Runs at boot;
+        allocates nothing, so it may run again under heap_lock()."""
+        self._check(0)
+        self._check(1)
+        s = self._slots
+        newer = self._newer(1, 0)
+        # The valid slot with the higher generation (slot 0 on a tie), -1 for none.
+        best = 1 if s[5] == VALID and (newer or s[0] != VALID) else (0 if s[0] == VALID else -1)
+        # A damaged slot that is provably older than the winner is a harmless leftover.
+        self.corrupt = self._bad(0, best) or self._bad(1, best)
+        self._active = 0
+        self.count = 0
+        self.crc = 0xFFFF
+        if self.corrupt or best < 0:
+            if self.corrupt:
+                self._wipe()
+            best = 1 if newer else 0  # the higher generation: the next commit goes above both
         else:
-            self.gen = top
+            self._active = best
+            self.count = s[5 * best + 3]
+            self.crc = s[5 * best + 4]
+        self.gen_hi = s[5 * best + 1]
+        self.gen_lo = s[5 * best + 2]
 
-    def _check(self, f):
-        """(state, generation, (count, crc)) of one slot file."""
+    def _wipe(self):
+        self._blank()
+        for f in self._files:
+            f.seek(0)
+            f.write(self._hdr)
+            f.flush()
+
+    def _check(self, i):
+        """Slot i's state, generation, count and CRC into self._slots."""
+        s = self._slots
+        o = 5 * i
+        st = self._state(self._files[i])
+        s[o] = st
+        h = self._hdr
+        known = st == VALID or st == DAMAGED  # the header checks out: its fields count
+        s[o + 1] = h[10] | h[11] << 8 if known else 0
+        s[o + 2] = h[8] | h[9] << 8 if known else 0
+        s[o + 3] = h[6] | h[7] << 8
+        s[o + 4] = h[12] | h[13] << 8
+
+    def _state(self, f):
+        """EMPTY, VALID, DAMAGED or GARBAGE: one slot file (its header left in _hdr)."""
         hdr = self._hdr
         f.seek(0)
         n = f.readinto(hdr)
-        if not n:
-            return EMPTY, 0, None
-        zero = True
-        for i in range(n):
-            if hdr[i]:
-                zero = False
-        if zero:
-            return EMPTY, 0, None
+        i = 0
+        while i < n and not hdr[i]:
+            i += 1
+        if i == n:  # nothing read, or zeros
+            return EMPTY
         if (n < HEADER_SIZE or hdr[0] != _MAGIC0 or hdr[1] != _MAGIC1 or hdr[2] != _MAGIC2
                 or hdr[3] != _MAGIC3 or crc16(hdr, 0, 14, 0xFFFF) != hdr[14] | hdr[15] << 8
                 or hdr[4] != self.mission_type or hdr[5] != RECORD_SIZE):
-            return GARBAGE, 0, None
-        count = hdr[6] | hdr[7] << 8
-        gen = hdr[8] | hdr[9] << 8 | hdr[10] << 16 | hdr[11] << 24
-        want = hdr[12] | hdr[13] << 8
-        if count > self.capacity:
-            return DAMAGED, gen, None
-        if not self._scan(f, count) or self._staged_crc != want:
-            return DAMAGED, gen, None
-        return VALID, gen, (count, want)
+            return GARBAGE
+        n = hdr[6] | hdr[7] << 8
+        if n > self.capacity or not self._scan(f, n) or self._staged_crc != hdr[12] | hdr[13] << 8:
+            return DAMAGED
+        return VALID
+
+    def _newer(self, i, j):
+        """Slot i's generation is above slot j's (compared by halves)."""
+        s = self._slots
+        i *= 5
+        j *= 5
+        return s[i + 1] > s[j + 1] or (s[i + 1] == s[j + 1] and s[i + 2] > s[j + 2])
+
+    def _bad(self, i, best):
+        st = self._slots[5 * i]
+        return st == GARBAGE or (st == DAMAGED and (best < 0 or self._newer(i, best)))
 
     def _scan(self, f, count):
         """CRC and DO_JUMP count of a slot's first `count` records (into _staged_crc and
         staged_jumps: no tuple on the commit path); False if the file is short."""
         rec = self._rec
         crc = 0xFFFF
-        jumps = 0
+        self.staged_jumps = 0
         f.seek(HEADER_SIZE)
-        for _ in range(count):
+        while count:
             if f.readinto(rec) != RECORD_SIZE:
                 return False
             crc = crc16(rec, 0, RECORD_SIZE, crc)
-            if rec[28] | rec[29] << 8 == _CMD_DO_JUMP:
-                jumps += 1
+            if rec[28] == _CMD_DO_JUMP and rec[29] == 0:
+                self.staged_jumps += 1
+            count -= 1
         self._staged_crc = crc
-        self.staged_jumps = jumps
         return True
 
     # --- the plan in force ----------------------------------------------------------
@@ -151,29 +183,45 @@ class MissionStore:
 
     @property
     def plan_id(self):
-        """Identifies the plan in force (MAVLink opaque_id): changes with every commit, never 0."""
-        return ((self.gen & 0xFFFF) << 16 | self.crc) or 1
+        """Identifies the plan in force (MAVLink opaque_id): changes with every commit, never 0.
+        An int up to 2^32: on the protocol's paths put_plan_id() writes its bytes instead."""
+        return (self.gen_lo << 16 | self.crc) or 1
+
+    def put_plan_id(self, buf, o):
+        """Write plan_id at buf[o] (u32, little endian) without making the int."""
+        c = self.crc
+        g = self.gen_lo
+        if not (c or g):
+            c = 1
+        buf[o] = c & 0xFF
+        buf[o + 1] = c >> 8
+        buf[o + 2] = g & 0xFF
+        buf[o + 3] = g >> 8
 
     # --- staging a new plan ---------------------------------------------------------
 
     def begin(self, keep=0):
         """Start a new plan in the spare slot, with the first `keep` items of the plan in force."""
         spare = self._files[1 - self._active]
+        self._blank()
+        spare.seek(0)
+        spare.write(self._hdr)
+        spare.flush()
+        src = self._files[self._active]
+        keep = keep if keep < self.count else self.count
+        o = HEADER_SIZE
+        while keep:
+            src.seek(o)
+            src.readinto(self._rec)
+            spare.seek(o)
+            spare.write(self._rec)
+            o += RECORD_SIZE
+            keep -= 1
+
+    def _blank(self):
         hdr = self._hdr
         for i in range(HEADER_SIZE):
             hdr[i] = 0
-        spare.seek(0)
-        spare.write(hdr)
-        spare.flush()
-        rec = self._rec
-        if keep > self.count:
-            keep = self.count
-        src = self._files[self._active]
-        for i in range(keep):
-            src.seek(HEADER_SIZE + i * RECORD_SIZE)
-            src.readinto(rec)
-            spare.seek(HEADER_SIZE + i * RECORD_SIZE)
-            spare.write(rec)
 
     def put(self, seq, rec):
         """Write record seq of the staged plan."""
@@ -190,11 +238,8 @@ class MissionStore:
 
     def commit(self):
         """Make the sealed plan the plan in force: one header write."""
-        spare_i = 1 - self._active
-        spare = self._files[spare_i]
-        gen = (self.gen + 1) & 0xFFFFFFFF
-        count = self._staged_count
-        crc = self._staged_crc
+        lo = (self.gen_lo + 1) & 0xFFFF  # the u32 generation + 1, carried by halves
+        hi = (self.gen_hi + 1) & 0xFFFF if lo == 0 else self.gen_hi
         h = self._hdr
         h[0] = _MAGIC0
         h[1] = _MAGIC1
@@ -202,25 +247,27 @@ class MissionStore:
         h[3] = _MAGIC3
         h[4] = self.mission_type
         h[5] = RECORD_SIZE
-        h[6] = count & 0xFF
-        h[7] = count >> 8
-        h[8] = gen & 0xFF
-        h[9] = (gen >> 8) & 0xFF
-        h[10] = (gen >> 16) & 0xFF
-        h[11] = gen >> 24
-        h[12] = crc & 0xFF
-        h[13] = crc >> 8
-        c = crc16(h, 0, 14, 0xFFFF)
-        h[14] = c & 0xFF
-        h[15] = c >> 8
+        h[6] = self._staged_count & 0xFF
+        h[7] = self._staged_count >> 8
+        h[8] = lo & 0xFF
+        h[9] = lo >> 8
+        h[10] = hi & 0xFF
+        h[11] = hi >> 8
+        h[12] = self._staged_crc & 0xFF
+        h[13] = self._staged_crc >> 8
+        v = crc16(h, 0, 14, 0xFFFF)
+        h[14] = v & 0xFF
+        h[15] = v >> 8
+        spare = self._files[1 - self._active]
         spare.seek(0)
         if spare.write(h) != HEADER_SIZE:
             return False
         spare.flush()
-        self._active = spare_i
-        self.gen = gen
-        self.count = count
-        self.crc = crc
+        self._active = 1 - self._active
+        self.gen_hi = hi
+        self.gen_lo = lo
+        self.count = self._staged_count
+        self.crc = self._staged_crc
         return True
 
     def clear(self):

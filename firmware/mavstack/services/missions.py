@@ -18,7 +18,11 @@ Frames are written byte by byte at the payload offsets, so the same code serves 
 seed dialect (no MISSION_ITEM_INT, no extension fields) and dialects whose MISSION_COUNT,
 MISSION_ACK and MISSION_CURRENT carry plan ids (opaque_id): the encoder cuts each
 payload to the length the dialect gives it. Nothing here allocates once a transfer
-has started.
+has started, on a 32-bit board too, where an int of 2^30 or more is a heap object:
+coordinates (1e7 degrees reach 1.8e9) stay in their bytes, are range-checked by 16-bit
+halves and converted to and from the seed's float degrees by small-int arithmetic, and
+plan ids are written as bytes. Handlers are split into short functions: MicroPython
+puts a frame of more than 11 words (locals + stack) on the heap.
 
     missions = ep.services["missions"]
     missions.stores[0|1|2]      the MissionStore of each plan type (None for a capacity of
@@ -31,7 +35,7 @@ has started.
 import gc
 
 from ..compat import const, ticks_diff, ticks_add
-from ..fields import u16, i16, i32, f32_is_nan, f32_to_int
+from ..fields import u16, i16, i32_cmp, f32_is_nan, f32_to_small
 from ..kernels import copy
 from .mission_store import MissionStore, RECORD_SIZE
 
@@ -83,11 +87,35 @@ _CAP_MISSION_INT = const(4)
 _CAP_MISSION_FENCE = const(16384)
 _CAP_MISSION_RALLY = const(32768)
 
-_NOT_A_NUMBER = const(-0x80000001)  # from _to_fixed: NaN, infinite or beyond int32
 _ITEM_FRAME_BYTES = const(50)  # a MAVLink 2 MISSION_ITEM_INT, for pacing pushed items
 _PUSH_SHARE = const(2)  # pushed items use at most 1/2 of the link
+# Credit for pushed items: elapsed ms * bytes/s must stay a small int (< 2^30). The
+# credit is full (4 frames) well within a second on any link of 400 bytes/s or more,
+# and at 1 MB/s four frames go out every millisecond, so neither cap is ever felt.
+_PUSH_MAX_MS = const(1000)
+_PUSH_MAX_RATE = const(0x100000)
 _CURRENT_PERIOD_MS = const(1000)
 _FRAME_MISSION = const(2)
+# The requests about one plan, by msgid - 37: bits 0-2 the offset of target_system
+# (mission_type is 2 bytes on), _CHANGE: it changes the plan (operator control needed).
+# _EVERY: MAV_MISSION_TYPE_ALL (255) allowed (MISSION_CLEAR_ALL).
+_CHANGE = const(8)
+_EVERY = const(16)
+_OPEN = (b"\x04"  # 37 MISSION_REQUEST_PARTIAL_LIST
+         b"\x0c"  # 38 MISSION_WRITE_PARTIAL_LIST: 4 | _CHANGE
+         b"\x00\x00\x00\x00"  # 39-42: not requests about a plan
+         b"\x00"  # 43 MISSION_REQUEST_LIST
+         b"\x0a")  # 44 MISSION_COUNT: 2 | _CHANGE
+
+# Position bounds in 1e7 degrees, as (signed high half, low half): +-90e7, +-180e7.
+_LAT_MAX_HI = const(13732)  # 900000000 = 13732 * 65536 + 59648
+_LAT_MAX_LO = const(59648)
+_LAT_MIN_HI = const(-13733)  # -900000000 = -13733 * 65536 + 5888
+_LAT_MIN_LO = const(5888)
+_LON_MAX_HI = const(27465)  # 1800000000 = 27465 * 65536 + 53760
+_LON_MAX_LO = const(53760)
+_LON_MIN_HI = const(-27466)  # -1800000000 = -27466 * 65536 + 11776
+_LON_MIN_LO = const(11776)
 
 # What an item's command needs, per MAV_MISSION_TYPE: 3 bytes a command, its id (little
 # endian) and what it needs: bits 0-3 param1-4 must be numbers, _P7 z must be a
@@ -168,7 +196,8 @@ class Missions:
         self.t_tries = 0
         self.t_credit = 0
         # The upload that completed last, to answer a repeat of its final item.
-        self.done_key = -1  # link index << 24 | sysid << 16 | compid << 8 | mission_type
+        self.done_link = None
+        self.done_key = -1  # sysid << 16 | compid << 8 | mission_type
         self.done_seq = -1
         self._current_due = 0
 
@@ -213,14 +242,7 @@ class Missions:
     def tick(self, now):
         state = self.state
         if state == _UPLOAD and ticks_diff(now, self.t_sent) >= self.retry_ms:
-            if self.t_tries >= self.retries or ticks_diff(now, self.t_heard) >= self.timeout_ms:
-                self.state = _IDLE
-                self._ack(self.t_link, self.t_peer >> 8, self.t_peer & 0xFF,
-                          _OPERATION_CANCELLED if self.t_link.version == 2 else _ERROR,
-                          self.t_store.mission_type)
-            else:
-                self.t_tries += 1
-                self._request(self.t_seq)
+            self._retry(now)
         elif state == _PUSH:
             self._push(now)
         elif state == _DOWNLOAD and ticks_diff(now, self.t_heard) >= self.timeout_ms:
@@ -235,6 +257,16 @@ class Missions:
             self._current_changed = False
             self._current_due = ticks_add(now, _CURRENT_PERIOD_MS)
 
+    def _retry(self, now):
+        if self.t_tries >= self.retries or ticks_diff(now, self.t_heard) >= self.timeout_ms:
+            self.state = _IDLE
+            link = self.t_link
+            self._ack(link, self.t_peer, _OPERATION_CANCELLED if link.version == 2 else _ERROR,
+                      self.t_store.mission_type)
+        else:
+            self.t_tries += 1
+            self._request(self.t_seq)
+
     def current_changed(self):
         """Send MISSION_CURRENT on the next tick (the runner calls this)."""
         self._current_changed = True
@@ -244,91 +276,89 @@ class Missions:
         rx = link.rx
         return link is self.t_link and rx.sysid << 8 | rx.compid == self.t_peer
 
-    def _type(self, p, o):
-        """The mission_type extension field at offset o (0 where the dialect has none:
-        the payload view holds stale bytes past a message's length)."""
-        return p[o] if self.has_type else 0
+    # mission_type is an extension field: where the dialect has none it reads as 0 (the
+    # payload view holds stale bytes past a message's length), hence `if self.has_type`.
 
-    def _open(self, link, p, at, mission_type, change, every=False):
-        """Checks shared by the requests that start something -> the plan type, or -1
-        once refused. at: offset of target_system; change: needs operator control;
-        every: MAV_MISSION_TYPE_ALL (255) is allowed (MISSION_CLEAR_ALL)."""
+    def _store(self, link, p):
+        """Checks shared by the requests about one plan (_OPEN says where their fields
+        are and what they need) -> its MissionStore, or None once refused."""
+        how = _OPEN[link.rx.msgid - _MSG_REQUEST_PARTIAL_LIST]
+        at = how & 7
         if not self.ep.for_us(p[at], p[at + 1]):
-            return -1
-        rx = link.rx
-        if change and not self.ep.allows(link):
-            result = _DENIED
+            return None
+        how = self._admit(link, p[at + 2] if self.has_type else 0, how)  # -> the plan type
+        return self.stores[how] if how >= 0 else None
+
+    def _admit(self, link, mt, how):
+        """A request of plan type mt may start -> mt, or -1 once refused."""
+        result = _DENIED
+        if how & _CHANGE and not self.ep.allows(link):
+            pass
         elif self.state != _IDLE and not self._is_peer(link):
-            result = _DENIED  # one transfer at a time; the one under way goes on
-        elif mission_type == _TYPE_MISSION or (mission_type < 3 and link.version == 2 and self.has_type
-                                               and self.stores[mission_type] is not None):
+            pass  # one transfer at a time; the one under way goes on
+        elif (mt == _TYPE_MISSION or (mt == _TYPE_ALL and how & _EVERY)
+              or (mt < 3 and link.version == 2 and self.has_type and self.stores[mt] is not None)):
             self.state = _IDLE  # the peer starts over: whatever it had under way is dropped
-            return mission_type
-        elif mission_type == _TYPE_ALL and every:
-            self.state = _IDLE
-            return mission_type
+            return mt
         else:
             result = _UNSUPPORTED  # fence and rally need MAVLink 2
-        self._ack(link, rx.sysid, rx.compid, result, mission_type)
+        self._reply(link, result, mt)
         return -1
 
-    def _start(self, link, state, store, seq, end):
+    def _start(self, link, state, store):
+        """A transfer with link's sender begins (the caller sets t_seq, t_end)."""
         rx = link.rx
         self.state = state
         self.t_link = link
         self.t_peer = rx.sysid << 8 | rx.compid
         self.t_store = store
-        self.t_seq = seq
-        self.t_end = end
         self.t_int = self.has_int and rx.version == 2
         self.t_tries = 0
-        now = self.ep.now
-        self.t_heard = now
-        self.t_sent = now
+        self.t_heard = self.t_sent = self.ep.now
         self.done_seq = -1
 
     # --- upload -------------------------------------------------------------------
     def _on_count(self, link, p):
         count = u16(p, 0)
-        mt = self._type(p, 4)
         if (self.state == _UPLOAD and self._is_peer(link) and self.t_seq > 0 and count == self.t_count
-                and self.t_end == count - 1 and mt == self.t_store.mission_type):
+                and self.t_end == count - 1 and (p[4] if self.has_type else 0) == self.t_store.mission_type):
             return  # a late copy of the MISSION_COUNT that started this upload
-        mt = self._open(link, p, 2, mt, True)
-        if mt < 0:
+        store = self._store(link, p)
+        if store is None:
             return
-        store = self.stores[mt]
-        rx = link.rx
         if count > store.capacity:
-            self._ack(link, rx.sysid, rx.compid, _NO_SPACE, mt)
+            self._reply(link, _NO_SPACE, store.mission_type)
         elif count == 0:
-            self._ack(link, rx.sysid, rx.compid, self._clear(store), mt)
+            self._reply(link, self._clear(store), store.mission_type)
         else:
-            self._upload(link, store, count, 0, count - 1, 0)
+            self.t_count = count
+            self.t_seq = 0
+            self.t_end = count - 1
+            self._upload(link, store, 0)
 
     def _on_write_partial(self, link, p):
-        mt = self._open(link, p, 4, self._type(p, 6), True)
-        if mt < 0:
+        store = self._store(link, p)
+        if store is None:
             return
-        store = self.stores[mt]
         start = i16(p, 0)
         end = i16(p, 2)
-        count = end + 1 if end + 1 > store.count else store.count
-        rx = link.rx
         # The seed: a start beyond the current list is rejected (0 always starts a list).
         if start < 0 or end < start or (start > 0 and start >= store.count):
-            self._ack(link, rx.sysid, rx.compid, _INVALID_SEQUENCE, mt)
-        elif count > store.capacity:
-            self._ack(link, rx.sysid, rx.compid, _NO_SPACE, mt)
+            self._reply(link, _INVALID_SEQUENCE, store.mission_type)
+        elif end >= store.capacity:  # the plan would have end + 1 items
+            self._reply(link, _NO_SPACE, store.mission_type)
         else:
-            self._upload(link, store, count, start, end, store.count)
+            self.t_count = end + 1 if end >= store.count else store.count
+            self.t_seq = start
+            self.t_end = end
+            self._upload(link, store, store.count)
 
-    def _upload(self, link, store, count, start, end, keep):
-        self._start(link, _UPLOAD, store, start, end)
-        self.t_count = count
-        self.t_current = -1 if start == 0 and keep == 0 else -2
+    def _upload(self, link, store, keep):
+        """Ask for items t_seq .. t_end of a plan of t_count (keep: items copied first)."""
+        self._start(link, _UPLOAD, store)
+        self.t_current = -1 if self.t_seq == 0 and keep == 0 else -2
         store.begin(keep)
-        self._request(start)
+        self._request(self.t_seq)
 
     def _request(self, seq):
         link = self.t_link
@@ -346,35 +376,40 @@ class Missions:
         # MISSION_ITEM_INT and the seed's MISSION_ITEM share their layout but for x and y.
         if not self.ep.for_us(p[32], p[33]):
             return
-        seq = u16(p, 28)
-        rx = link.rx
-        mt = self._type(p, 37)
         if self.state != _UPLOAD or not self._is_peer(link):
-            # The ACK of a completed upload was lost: the ground station repeats the last item.
-            if (self.state == _IDLE and seq == self.done_seq
-                    and link.index << 24 | rx.sysid << 16 | rx.compid << 8 | mt == self.done_key):
-                self._ack(link, rx.sysid, rx.compid, _ACCEPTED, mt)
+            self._stray(link, p)
             return
-        store = self.t_store
-        if mt != store.mission_type:
+        if (p[37] if self.has_type else 0) != self.t_store.mission_type:
             return
         self.t_heard = self.ep.now
-        if seq != self.t_seq:
+        seq = u16(p, 28)
+        if seq == self.t_seq:
+            self._take(link, p, seq)
+        elif seq + 1 != self.t_seq:
             # Out of sequence: ignored. A copy of the previous item (a duplicate, or one
             # that crossed our re-request) waits for the retry timer, so that duplicates
             # cannot breed more duplicates; anything else has the expected one re-requested.
-            if seq + 1 != self.t_seq:
-                self._request(self.t_seq)
-            return
-        is_int = rx.msgid == _MSG_ITEM_INT
+            self._request(self.t_seq)
+
+    def _stray(self, link, p):
+        # The ACK of a completed upload was lost: the ground station repeats the last item.
+        rx = link.rx
+        mt = p[37] if self.has_type else 0
+        if (self.state == _IDLE and u16(p, 28) == self.done_seq and link is self.done_link
+                and rx.sysid << 16 | rx.compid << 8 | mt == self.done_key):
+            self._reply(link, _ACCEPTED, mt)
+
+    def _take(self, link, p, seq):
+        """The item expected: check it, store it, ask for the next or finish."""
+        is_int = link.rx.msgid == _MSG_ITEM_INT
         if not is_int:
             self.t_int = False  # it speaks the seed's messages: ask in its terms
         result = self._check(p, is_int, seq)
-        if result == _ACCEPTED and not store.put(seq, self._rec):
+        if result == _ACCEPTED and not self.t_store.put(seq, self._rec):
             result = _ERROR
         if result != _ACCEPTED:
             self.state = _IDLE
-            self._ack(link, rx.sysid, rx.compid, result, mt)
+            self._reply(link, result, self.t_store.mission_type)
             return
         if p[35] == 1 and self.t_current != -2:
             self.t_current = seq
@@ -382,14 +417,19 @@ class Missions:
             self.t_seq = seq + 1
             self.t_tries = 0
             self._request(seq + 1)
-            return
+        else:
+            self._finish(link, seq)
+
+    def _finish(self, link, seq):
         self.state = _IDLE
+        store = self.t_store
         result = self._commit(store, self.t_count)
         if result == _ACCEPTED:
-            self.done_key = link.index << 24 | self.t_peer << 8 | mt
+            self.done_link = link
+            self.done_key = self.t_peer << 8 | store.mission_type
             self.done_seq = seq
             self._plan_changed(store, 0 if self.t_current == -1 else self.t_current)  # -2: keep
-        self._ack(link, rx.sysid, rx.compid, result, mt)
+        self._reply(link, result, store.mission_type)
 
     def _commit(self, store, count):
         if not store.seal(count):
@@ -412,87 +452,89 @@ class Missions:
 
     def _check(self, p, is_int, seq):
         """Validate an item and build its record in self._rec -> MAV_MISSION_RESULT."""
-        rec = self._rec
-        copy(rec, p, 0, 28)  # params, x, y, z as they came
-        rec[28] = p[30]
-        rec[29] = p[31]
+        copy(self._rec, p, 0, 28)  # params, x, y, z as they came
+        self._rec[28] = p[30]  # command
+        self._rec[29] = p[31]
+        self._rec[30] = p[34]  # frame
+        self._rec[31] = p[36]  # autocontinue
         frame = p[34]
-        rec[30] = frame
-        rec[31] = p[36]
-        command = u16(p, 30)
         if frame not in self.frames:
             return _UNSUPPORTED_FRAME
-        mt = self.t_store.mission_type
-        need = _need(_RULES[mt], command)
-        if need < 0 and mt == _TYPE_MISSION and self.extra is not None:
-            need = self.extra.get(command, -1)
+        need = self._need(u16(p, 30))
         if need < 0:
             return _UNSUPPORTED
-        local = frame in _LOCAL_FRAMES
-        pos = need & _POS
-        if pos and frame == _FRAME_MISSION:
+        if need & _POS and frame == _FRAME_MISSION:
             return _UNSUPPORTED_FRAME
+        return (self._xy(frame in _LOCAL_FRAMES, need, is_int) or _numbers(p, need)
+                or (self._jump(p, seq) if u16(p, 30) == _CMD_DO_JUMP else _ACCEPTED))
+
+    def _need(self, command):
+        """What the command needs (_P*, _POS bits), -1 if this plan type does not take it."""
+        mt = self.t_store.mission_type
+        need = _find(_RULES[mt], command)
+        if need < 0 and mt == _TYPE_MISSION and self.extra is not None:
+            need = self.extra.get(command, -1)
+        return need
+
+    def _xy(self, local, need, is_int):
+        """x, y of the record: the seed's float degrees made integers, then range-checked."""
+        rec = self._rec
+        pos = need & _POS
         if not is_int:
-            scale_e = 4 if local else 7
-            for i in range(2):
-                v = _to_fixed(p, 16 + 4 * i, scale_e)
-                if v == _NOT_A_NUMBER:
-                    if pos:
-                        return _INVALID_PARAM5_X + i
-                    v = 0
-                _put_u32(rec, 16 + 4 * i, v & 0xFFFFFFFF)
-        if pos and not local:
-            if not -900000000 <= i32(rec, 16) <= 900000000:
+            # NaN or beyond int32: refused where a position is needed, else stored as 0.
+            if not _fix(rec, 16, local) and pos:
                 return _INVALID_PARAM5_X
-            if not -1800000000 <= i32(rec, 20) <= 1800000000:
+            if not _fix(rec, 20, local) and pos:
                 return _INVALID_PARAM6_Y
-        for i in range(4):
-            if need & (1 << i) and f32_is_nan(p, i * 4):
-                return _INVALID_PARAM1 + i
-        if need & _P7 and f32_is_nan(p, 24):
-            return _INVALID_PARAM7
-        if command == _CMD_DO_JUMP:
-            target = f32_to_int(p, 0)
-            if target < 0 or target >= self.t_count or target == seq:
-                return _INVALID_PARAM1
-            if f32_to_int(p, 4) < -1:
-                return _INVALID_PARAM1 + 1
+        if pos and not local:
+            if i32_cmp(rec, 16, _LAT_MAX_HI, _LAT_MAX_LO) > 0 or i32_cmp(rec, 16, _LAT_MIN_HI, _LAT_MIN_LO) < 0:
+                return _INVALID_PARAM5_X
+            if i32_cmp(rec, 20, _LON_MAX_HI, _LON_MAX_LO) > 0 or i32_cmp(rec, 20, _LON_MIN_HI, _LON_MIN_LO) < 0:
+                return _INVALID_PARAM6_Y
+        return _ACCEPTED
+
+    def _jump(self, p, seq):
+        # f32_to_small: a target or repeat count beyond 2^30 is as wrong as any other.
+        target = f32_to_small(p, 0)
+        if target < 0 or target >= self.t_count or target == seq:
+            return _INVALID_PARAM1
+        if f32_to_small(p, 4) < -1:
+            return _INVALID_PARAM1 + 1
         return _ACCEPTED
 
     # --- download -----------------------------------------------------------------
     def _on_request_list(self, link, p):
-        mt = self._open(link, p, 0, self._type(p, 2), False)
-        if mt < 0:
+        store = self._store(link, p)
+        if store is None:
             return
-        store = self.stores[mt]
-        count = store.count
-        if count:
-            self._start(link, _DOWNLOAD, store, 0, count - 1)
-        rx = link.rx
+        if store.count:
+            self._start(link, _DOWNLOAD, store)
+            self.t_seq = 0
+            self.t_end = store.count - 1
         off = link.begin()
         buf = link.txbuf
-        buf[off] = count & 0xFF
-        buf[off + 1] = count >> 8
-        buf[off + 2] = rx.sysid
-        buf[off + 3] = rx.compid
-        buf[off + 4] = mt
-        _put_u32(buf, off + 5, store.plan_id)  # opaque_id, where the dialect has it
+        buf[off] = store.count & 0xFF
+        buf[off + 1] = store.count >> 8
+        buf[off + 2] = link.rx.sysid
+        buf[off + 3] = link.rx.compid
+        buf[off + 4] = store.mission_type
+        store.put_plan_id(buf, off + 5)  # opaque_id, where the dialect has it
         link.send(_MSG_COUNT)
 
     def _on_request_partial(self, link, p):
-        mt = self._open(link, p, 4, self._type(p, 6), False)
-        if mt < 0:
+        store = self._store(link, p)
+        if store is None:
             return
-        store = self.stores[mt]
         start = i16(p, 0)
         end = i16(p, 2)
         if end < 0 or end >= store.count:
             end = store.count - 1  # -1: to the end of the list
         if start < 0 or start > end:
-            rx = link.rx
-            self._ack(link, rx.sysid, rx.compid, _INVALID_SEQUENCE, mt)
+            self._reply(link, _INVALID_SEQUENCE, store.mission_type)
             return
-        self._start(link, _PUSH, store, start, end)
+        self._start(link, _PUSH, store)
+        self.t_seq = start
+        self.t_end = end
         self.t_credit = _ITEM_FRAME_BYTES
         self._push(self.t_sent)
 
@@ -502,7 +544,9 @@ class Missions:
         elapsed = ticks_diff(now, self.t_sent)
         if elapsed > 0:
             self.t_sent = now
-            credit = self.t_credit + elapsed * link.bytes_per_s // (1000 * _PUSH_SHARE)
+            credit = self.t_credit + ((elapsed if elapsed < _PUSH_MAX_MS else _PUSH_MAX_MS)
+                                      * (link.bytes_per_s if link.bytes_per_s < _PUSH_MAX_RATE else _PUSH_MAX_RATE)
+                                      // (1000 * _PUSH_SHARE))
             self.t_credit = credit if credit < 4 * _ITEM_FRAME_BYTES else 4 * _ITEM_FRAME_BYTES
         while self.t_credit >= _ITEM_FRAME_BYTES and self.t_seq <= self.t_end:
             self.t_credit -= _ITEM_FRAME_BYTES
@@ -516,70 +560,74 @@ class Missions:
         # with MISSION_ITEM; answered whenever no other ground station has a transfer open.
         if not self.ep.for_us(p[2], p[3]):
             return
-        rx = link.rx
-        mt = self._type(p, 4)
-        state = self.state
-        if state == _UPLOAD or (state != _IDLE and not self._is_peer(link)):
+        mt = p[4] if self.has_type else 0
+        if self.state == _UPLOAD or (self.state != _IDLE and not self._is_peer(link)):
             if not self._is_peer(link):
-                self._ack(link, rx.sysid, rx.compid, _DENIED, mt)
+                self._reply(link, _DENIED, mt)
             return
         store = self.stores[mt] if mt < 3 and (mt == 0 or link.version == 2) else None
-        if store is None:
-            self._ack(link, rx.sysid, rx.compid, _UNSUPPORTED, mt)
-            return
         seq = u16(p, 0)
+        if store is None:
+            self._reply(link, _UNSUPPORTED, mt)
+        else:
+            self._serve(link, store, seq)
+
+    def _serve(self, link, store, seq):
         if seq >= store.count:
             self.state = _IDLE
-            self._ack(link, rx.sysid, rx.compid, _INVALID_SEQUENCE, mt)
+            self._reply(link, _INVALID_SEQUENCE, store.mission_type)
             return
         self.t_heard = self.ep.now
-        self._send_item(link, store, seq, rx.msgid == _MSG_REQUEST_INT)
-        if state == _DOWNLOAD and seq == self.t_end:
+        self._send_item(link, store, seq, link.rx.msgid == _MSG_REQUEST_INT)
+        if self.state == _DOWNLOAD and seq == self.t_end:
             self.state = _IDLE  # the last item: done, whether or not an ACK follows
 
     def _send_item(self, link, store, seq, as_int):
-        rec = self._rec
-        if not store.read(seq, rec):
+        if not store.read(seq, self._rec):
             return
+        off = self._item_into(link, seq, store.mission_type)
+        if not as_int:  # the seed's MISSION_ITEM: x, y as float degrees (metres if local)
+            _floats(link.txbuf, off, self._rec[30] in _LOCAL_FRAMES)
+        link.send(_MSG_ITEM_INT if as_int else _MSG_ITEM)
+
+    def _item_into(self, link, seq, mt):
+        """MISSION_ITEM_INT's payload in link.txbuf from record seq (in self._rec) -> its offset."""
         off = link.begin()
         buf = link.txbuf
-        copy(buf, rec, off, 28)
-        if not as_int:
-            scale_e = 4 if rec[30] in _LOCAL_FRAMES else 7
-            _put_u32(buf, off + 16, _to_float(i32(rec, 16), scale_e))
-            _put_u32(buf, off + 20, _to_float(i32(rec, 20), scale_e))
+        copy(buf, self._rec, off, 28)
         buf[off + 28] = seq & 0xFF
         buf[off + 29] = seq >> 8
-        buf[off + 30] = rec[28]
-        buf[off + 31] = rec[29]
+        buf[off + 30] = self._rec[28]
+        buf[off + 31] = self._rec[29]
         buf[off + 32] = link.rx.sysid
         buf[off + 33] = link.rx.compid
-        buf[off + 34] = rec[30]
-        runner = self.runner
-        buf[off + 35] = 1 if store.mission_type == _TYPE_MISSION and runner is not None and seq == runner.current else 0
-        buf[off + 36] = rec[31]
-        buf[off + 37] = store.mission_type
-        link.send(_MSG_ITEM_INT if as_int else _MSG_ITEM)
+        buf[off + 34] = self._rec[30]
+        buf[off + 35] = 1 if mt == _TYPE_MISSION and self.runner is not None and seq == self.runner.current else 0
+        buf[off + 36] = self._rec[31]
+        buf[off + 37] = mt
+        return off
 
     def _on_ack(self, link, p):
         # The peer ends its download, or cancels its upload (nothing is stored then).
         if (self.ep.for_us(p[0], p[1]) and self.state != _IDLE and self._is_peer(link)
-                and self._type(p, 3) == self.t_store.mission_type):
+                and (p[3] if self.has_type else 0) == self.t_store.mission_type):
             self.state = _IDLE
 
     # --- clear, current -----------------------------------------------------------
     def _on_clear_all(self, link, p):
-        mt = self._open(link, p, 0, self._type(p, 2), True, True)
-        if mt < 0:
+        if not self.ep.for_us(p[0], p[1]):
             return
+        mt = self._admit(link, p[2] if self.has_type else 0, _CHANGE | _EVERY)
+        if mt >= 0:
+            self._reply(link, self._clear_types(mt), mt)
+
+    def _clear_types(self, mt):
         result = _ACCEPTED
-        for store in self.stores:
-            if store is not None and (mt == _TYPE_ALL or mt == store.mission_type):
-                r = self._clear(store)
-                if r != _ACCEPTED:
-                    result = r
-        rx = link.rx
-        self._ack(link, rx.sysid, rx.compid, result, mt)
+        for t in range(3):
+            store = self.stores[t]
+            if store is not None and (mt == _TYPE_ALL or mt == t):
+                result = self._clear(store) or result  # the last failure is reported
+        return result
 
     def _on_set_current(self, link, p):
         if not self.ep.for_us(p[2], p[3]):
@@ -591,12 +639,18 @@ class Missions:
         self.send_current(link)
 
     def send_current(self, link):
-        runner = self.runner
-        stores = self.stores
         off = link.begin()
         buf = link.txbuf
-        count = stores[0].count
-        total = count or 0xFFFF  # UINT16_MAX: no mission
+        self._current_into(buf, off)
+        # mission_id, fence_id, rally_points_id, where the dialect has them
+        self._put_id(buf, off + 6, 0)
+        self._put_id(buf, off + 10, 1)
+        self._put_id(buf, off + 14, 2)
+        return link.send(_MSG_CURRENT)
+
+    def _current_into(self, buf, off):
+        runner = self.runner
+        count = self.stores[0].count
         seq = 0
         if runner is not None:
             seq = runner.current
@@ -607,96 +661,186 @@ class Missions:
             buf[off + 5] = 0  # unknown: nothing here flies missions
         buf[off] = seq & 0xFF
         buf[off + 1] = seq >> 8
-        buf[off + 2] = total & 0xFF
-        buf[off + 3] = total >> 8
-        for i in range(3):  # mission_id, fence_id, rally_points_id, where the dialect has them
-            _put_u32(buf, off + 6 + 4 * i, stores[i].plan_id if stores[i] is not None else 0)
-        return link.send(_MSG_CURRENT)
+        count = count or 0xFFFF  # UINT16_MAX: no mission
+        buf[off + 2] = count & 0xFF
+        buf[off + 3] = count >> 8
+
+    def _put_id(self, buf, o, mt):
+        """The plan id of type mt at buf[o] (u32), 0 without such a plan."""
+        store = self.stores[mt] if mt < 3 else None
+        if store is None:
+            buf[o] = buf[o + 1] = buf[o + 2] = buf[o + 3] = 0
+        else:
+            store.put_plan_id(buf, o)
 
     def send_reached(self, seq):
-        for link in self.ep.links:
-            off = link.begin()
-            link.txbuf[off] = seq & 0xFF
-            link.txbuf[off + 1] = seq >> 8
-            link.send(_MSG_ITEM_REACHED)
+        links = self.ep.links
+        for i in range(len(links)):
+            off = links[i].begin()
+            links[i].txbuf[off] = seq & 0xFF
+            links[i].txbuf[off + 1] = seq >> 8
+            links[i].send(_MSG_ITEM_REACHED)
 
-    def _ack(self, link, sysid, compid, result, mission_type):
+    def _reply(self, link, result, mt):
+        """MISSION_ACK to the sender of the frame in hand."""
+        self._ack(link, link.rx.sysid << 8 | link.rx.compid, result, mt)
+
+    def _ack(self, link, peer, result, mt):
         off = link.begin()
-        buf = link.txbuf
-        buf[off] = sysid
-        buf[off + 1] = compid
-        buf[off + 2] = result
-        buf[off + 3] = mission_type
+        link.txbuf[off] = peer >> 8
+        link.txbuf[off + 1] = peer & 0xFF
+        link.txbuf[off + 2] = result
+        link.txbuf[off + 3] = mt
         # opaque_id (where the dialect has it): the new plan's id after an upload.
-        store = self.stores[mission_type] if mission_type < 3 else None
-        _put_u32(buf, off + 4, store.plan_id if result == _ACCEPTED and store is not None else 0)
+        self._put_id(link.txbuf, off + 4, 3 if result else mt)
         link.send(_MSG_ACK)
 
 
-def _need(rules, command):
+def _find(rules, command):
     for i in range(0, len(rules), 3):
         if rules[i] | rules[i + 1] << 8 == command:
             return rules[i + 2]
     return -1
 
 
-def _put_u32(buf, o, v):
-    buf[o] = v & 0xFF
-    buf[o + 1] = (v >> 8) & 0xFF
-    buf[o + 2] = (v >> 16) & 0xFF
-    buf[o + 3] = (v >> 24) & 0xFF
+def _floats(buf, off, local):
+    """MISSION_ITEM_INT's x, y at buf[off + 16], [off + 20] -> MISSION_ITEM's floats."""
+    _unfix(buf, off + 16, local)
+    _unfix(buf, off + 20, local)
 
 
-def _to_fixed(p, o, scale_e):
-    """A float32 field times 10**scale_e, rounded to the nearest int, from its bits.
+def _numbers(p, need):
+    """NaN where the command needs a number -> INVALID_PARAM1..4, 7; else ACCEPTED."""
+    for i in range(4):
+        if need & (1 << i) and f32_is_nan(p, i * 4):
+            return _INVALID_PARAM1 + i
+    if need & _P7 and f32_is_nan(p, 24):
+        return _INVALID_PARAM7
+    return _ACCEPTED
 
-    MISSION_ITEM carries degrees (metres in local frames) as floats; the store keeps
-    MISSION_ITEM_INT's integers. The float is m * 2**(e-150) exactly, so
-    m * 10**scale_e shifted right by 150-e with rounding is the exact nearest integer,
-    and no float is made. _NOT_A_NUMBER for NaN, infinities and values beyond int32.
-    """
-    b = p[o] | p[o + 1] << 8 | p[o + 2] << 16 | p[o + 3] << 24
-    e = (b >> 23) & 0xFF
-    # |f| >= 2**(e-127): beyond 2**31 / 10**scale_e it cannot fit an int32. Below that
-    # the shift stays negative, so every int here stays small.
-    if e > (134 if scale_e == 7 else 144):
-        return _NOT_A_NUMBER  # also NaN and the infinities (e == 255)
-    m = b & 0x7FFFFF
-    if e:
-        m |= 0x800000
+
+# --- MISSION_ITEM's float32 degrees <-> MISSION_ITEM_INT's int32 ---------------------
+# Exact, and with small ints only: a float32 is m * 2**(e-150) (m < 2**24), so
+# f * 10**k = m * 5**k / 2**(150-e-k), where m * 5**k < 2**41 is held as two ints.
+# The other way is long division, 4 bits and then 1 bit at a time.
+_acc = [0, 0]  # the scratch of the conversions: a wide number as two small ints
+
+
+def _fix(rec, o, local):
+    """In place: the float32 at rec[o] (degrees; metres where local) -> the int32 of
+    MISSION_ITEM_INT (* 1e7; * 1e4 where local), nearest, halves away from zero.
+    False, and 0 written, for NaN, infinities and values beyond int32."""
+    e = (rec[o + 3] & 0x7F) << 1 | rec[o + 2] >> 7
+    # |f| >= 2**(e-127): beyond 2**31 / 10**k it cannot fit an int32 (NaN, inf: e 255).
+    if e > (144 if local else 134):
+        return _put_i32(rec, o, False)
+    # m * 5**k = H * 2**24 + L into _acc, by 12-bit pieces of m (5**7 < 2**17).
+    m = (rec[o + 2] & 0x7F | (0x80 if e else 0)) << 16 | rec[o + 1] << 8 | rec[o]
+    a = (m >> 12) * (625 if local else 78125)  # < 2**12 * 5**7 < 2**29
+    m = (m & 0xFFF) * (625 if local else 78125) + ((a & 0xFFF) << 12)  # < 2**30
+    _acc[0] = (a >> 12) + (m >> 24)
+    _acc[1] = m & 0xFFFFFF
+    _shift((149 if e == 0 else 150 - e) - (4 if local else 7))  # e 0: subnormal
+    return _put_i32(rec, o, _acc[0] <= 0x7FFF)  # beyond int32: 0
+
+
+def _shift(s):
+    """_acc = (H, L) -> v = round((H * 2**24 + L) / 2**s), halves up, as (v >> 16, v & 0xFFFF)."""
+    if s > 41:  # H * 2**24 + L < 2**41: below one half
+        _acc[0] = _acc[1] = 0
+        return
+    h = _acc[0]
+    low = _acc[1]
+    if s <= 24:
+        low += 1 << (s - 1)
     else:
-        e = 1  # subnormal
-    shift = 150 - e
-    v = (m * 10 ** scale_e + (1 << (shift - 1))) >> shift if shift < 62 else 0
-    if v > 0x7FFFFFFF:
-        return _NOT_A_NUMBER
-    return -v if b & 0x80000000 else v
+        h += 1 << (s - 25)
+    h += low >> 24
+    low &= 0xFFFFFF
+    _acc[0] = _bits16(h, low, s + 16)
+    _acc[1] = _bits16(h, low, s)
 
 
-def _to_float(v, scale_e):
-    """Bits of the float32 nearest to v / 10**scale_e (ties to even), from ints."""
-    if v == 0:
-        return 0
-    sign = 0
-    if v < 0:
-        sign = 0x80000000
-        v = -v
-    d = 10 ** scale_e
-    # s such that 2**23 <= v * 2**s / d < 2**24; s > 0 for any int32 v and d >= 10**4.
-    s = 23
-    while v << s >= d << 24:
-        s -= 1
-    while v << s < d << 23:
-        s += 1
-    n = v << s
-    q = n // d
-    r = n - q * d
-    if 2 * r > d or (2 * r == d and q & 1):
+def _bits16(h, low, t):
+    """Bits t .. t+15 of h * 2**24 + low (h < 2**18, low < 2**24)."""
+    if t >= 24:
+        return (h >> (t - 24)) & 0xFFFF
+    v = low >> t
+    if t > 8:  # h's lowest t - 8 bits land below bit 16
+        v |= (h & ((1 << (t - 8)) - 1)) << (24 - t)
+    return v & 0xFFFF
+
+
+def _put_i32(buf, o, ok):
+    """buf[o:o+4] <- the magnitude in _acc (high half, low half) as an int32, negated if
+    buf[o+3] has its sign bit set (the float's, or the int's); 0 if not ok -> ok."""
+    hi = _acc[0] if ok else 0
+    lo = _acc[1] if ok else 0
+    if ok and buf[o + 3] & 0x80:  # two's complement by halves: the carry of -lo goes into ~hi
+        lo = -lo & 0xFFFF
+        hi = (~hi + (lo == 0)) & 0xFFFF
+    buf[o] = lo & 0xFF
+    buf[o + 1] = lo >> 8
+    buf[o + 2] = hi & 0xFF
+    buf[o + 3] = hi >> 8
+    return ok
+
+
+def _unfix(buf, o, local):
+    """In place: the int32 at buf[o] -> the float32 nearest to it / 1e7 (/ 1e4 where
+    local), ties to even (its bits)."""
+    neg = buf[o + 3] & 0x80
+    if neg:  # the magnitude first, in place, by halves (2**31 too: 0x8000, 0)
+        _acc[0] = buf[o + 2] | buf[o + 3] << 8
+        _acc[1] = buf[o] | buf[o + 1] << 8
+        _put_i32(buf, o, True)
+    if not (buf[o] or buf[o + 1] or buf[o + 2] or buf[o + 3]):
+        return  # 0: the bits of 0.0 are already there
+    d = 10000 if local else 10000000
+    _acc[0] = _acc[1] = 0
+    _div16(buf[o + 2] | buf[o + 3] << 8, d)
+    _div16(buf[o] | buf[o + 1] << 8, d)
+    d = 150 - _frac(d)  # the biased exponent; the 24-bit significand is in _acc[0]
+    q = _acc[0]
+    buf[o] = q & 0xFF
+    buf[o + 1] = (q >> 8) & 0xFF
+    buf[o + 2] = (d & 1) << 7 | (q >> 16) & 0x7F
+    buf[o + 3] = neg | d >> 1
+
+
+def _div16(x, d):
+    """Long division: (quotient, remainder) by d in _acc, continued by the 16 bits of x,
+    4 at a time (the remainder is below d, so remainder * 16 stays small)."""
+    n = 12
+    while n >= 0:
+        r = _acc[1] << 4 | (x >> n) & 0xF
+        _acc[0] = _acc[0] << 4 | r // d
+        _acc[1] = r % d
+        n -= 4
+
+
+def _frac(d):
+    """Binary digits of remainder / d appended to the quotient until it has 24
+    significant bits, then rounded to nearest, ties to even -> how many were appended.
+    (The quotient is below 2**31 / 10**4 < 2**23 to begin with.)"""
+    q = _acc[0]
+    r = _acc[1]
+    n = 0
+    while q < 0x800000:
+        q <<= 1
+        r <<= 1
+        if r >= d:
+            r -= d
+            q |= 1
+        n += 1
+    r <<= 1
+    if r > d or (r == d and q & 1):
         q += 1
-        if q == 1 << 24:
+        if q == 0x1000000:
             q >>= 1
-            s -= 1
-    return sign | (150 - s) << 23 | (q & 0x7FFFFF)
+            n -= 1
+    _acc[0] = q
+    return n
 
 
 def create(ep):
