@@ -13,8 +13,8 @@ heap_unlock().
     signing_steady.py N [LOCK]
     prints: impl accepted bad replayed unsigned pings good_out bad_out, then bytes
             requested: signing_heap steady_heap save_heap ram_save_heap copy_heap
-    save_heap: the service's save into a plain storage stub; ram_save_heap: the same into
-    storage_ram ("MemoryError" if it allocated under heap_lock); copy_heap: one call of
+    save_heap: the service's save into a plain storage stub; ram_save_heap: its first save
+    into storage_ram ("MemoryError" if it allocated under heap_lock); copy_heap: one call of
     the byte kernel copy (the portable one's frame may come from the heap); then the
     milliseconds the N frames took
     (replayed counts both replays of an old frame and a new stream too far behind)
@@ -140,7 +140,6 @@ class Traffic:
         b.rx.verify = self.check.verify
         b.send_raw(first, len(first))
         b.run(200, 10)
-        self.svc._save()  # the storage makes its file handle at the first open
         self.out = bytearray(64)
         self.rx = _Rx()
 
@@ -193,13 +192,13 @@ class Traffic:
     def save(self):
         self.svc._save()
 
-    def save_to(self, requests, storage):
+    def save_to(self, storage):
         # A save into the given storage -> bytes requested ("MemoryError": allocated locked).
         ep = self.b.ep
         kept = ep.storage
         ep.storage = storage
         try:
-            return requests(self.save)
+            return heap_requests(self.save)
         except MemoryError:
             return "MemoryError"
         finally:
@@ -232,46 +231,17 @@ class FlatStorage:
         self.commits += 1
 
 
-def _nothing():
-    pass
-
-
-def _local_requests(fn):
-    # harness.heap_requests's own fn(*args) allocates under heap_lock (a star-args call
-    # builds its argument array on the heap even when empty); the same check, fn() direct.
-    before = micropython.mem_total()
-    fn()
-    requested = micropython.mem_total() - before
-    micropython.heap_lock()
-    try:
-        fn()
-    finally:
-        micropython.heap_unlock()
-    return requested
-
-
-def requests_fn():
-    # harness.heap_requests, unless it fails itself under heap_lock (see above).
-    if micropython is None or not hasattr(micropython, "mem_total"):
-        return heap_requests
-    try:
-        heap_requests(_nothing)
-        return heap_requests
-    except MemoryError:
-        return _local_requests
-
-
 def main(n, lock):
     t = Traffic(n)
     svc = t.svc
-    requests = requests_fn()
-    signing_heap = requests(t.paths)
-    steady_heap = requests(t.stretch)
+    signing_heap = heap_requests(t.paths)
+    steady_heap = heap_requests(t.stretch)
     flat = FlatStorage()
-    save_heap = t.save_to(requests, flat)
+    save_heap = t.save_to(flat)
     assert flat.commits and flat.n == 42, "the key was not saved"
-    ram_save_heap = t.save_to(requests, t.b.ep.storage)
-    copy_heap = requests(t.copy6)
+    ram_save_heap = t.save_to(t.b.ep.storage)
+    assert t.b.ep.storage.exists("signing_key"), "the key was not saved"
+    copy_heap = heap_requests(t.copy6)
     svc.accepted = svc.bad_signature = svc.replayed = svc.unsigned = 0
     pings = t.b.seen[_PING]
     t.check.good = t.check.bad = 0

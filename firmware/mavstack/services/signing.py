@@ -103,6 +103,8 @@ class Signing:
             self._hooks.append((link, h.verify, h.sign))
         ep.on(_MSG_SETUP_SIGNING, self._on_setup)
         self._load()
+        if getattr(ep, "storage", None) is not None:
+            ep.storage.reserve(_FILE, _FILE_LEN)  # the first save allocates nothing
 
     # --- per frame ---------------------------------------------------------------------
     def check(self, rx, buf, plen, signed):
