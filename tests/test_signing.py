@@ -399,54 +399,32 @@ def test_timestamp_bytes_arithmetic_matches_ints():
 
 # --- MicroPython: signed traffic under heap_lock ----------------------------------------
 
-_STEADY = {}
-
-
-def steady_run(portable, monkeypatch, n=2000):
-    """signing_steady.py N lock on the unix port, once per kernel set -> its fields."""
-    if portable not in _STEADY:
-        if portable:
-            monkeypatch.setenv("MAVSTACK_PORTABLE", "1")
-        else:
-            monkeypatch.delenv("MAVSTACK_PORTABLE", raising=False)
-        r = run_mpy(os.path.join(TESTS_MPY, "signing_steady.py"), n, "lock", path=[TESTS_MPY],
-                    timeout=120)
-        assert r.returncode == 0, r.stderr
-        names = ("impl accepted bad replayed unsigned pings good_out bad_out signing_heap "
-                 "steady_heap save_heap ram_save_heap copy_heap ms").split()
-        values = r.stdout.split()
-        assert len(values) == len(names), r.stdout
-        _STEADY[portable] = dict(zip(names, values), n=n)
-    return _STEADY[portable]
-
-
 @pytest.mark.parametrize("portable", [False, True], ids=["mpy-viper", "mpy-portable"])
 def test_signed_traffic_allocates_nothing(monkeypatch, portable):
-    r = steady_run(portable, monkeypatch)
-    n = r["n"]
-    assert r["impl"] == ("portable" if portable else "viper")
+    """signing_steady.py: wall-clock timestamps on two links, tampered, replayed, too old
+    and unsigned frames, everything sent signed; the service's own paths ask the heap for
+    nothing (own=0, harness.heap_requests), and N frames run under heap_lock."""
+    if portable:
+        monkeypatch.setenv("MAVSTACK_PORTABLE", "1")
+    else:
+        monkeypatch.delenv("MAVSTACK_PORTABLE", raising=False)
+    n = 2000
+    r = run_mpy(os.path.join(TESTS_MPY, "signing_steady.py"), n, "lock", path=[TESTS_MPY],
+                timeout=120)
+    assert r.returncode == 0, r.stderr
+    line = r.stdout.strip().splitlines()[-1]
+    words = line.split()
+    f = dict(w.split("=", 1) for w in words[1:])
+    assert words[0] == "ok", line
+    assert f["impl"] == ("portable" if portable else "viper")
     k = n // 100
     # Verified; and dropped: tampered, replayed (an old frame, or a new stream too far
     # behind), unsigned.
-    assert [int(r[f]) for f in ("accepted", "bad", "replayed", "unsigned")] == [n, k, 2 * k, k]
-    assert int(r["pings"]) == n  # every PING answered, signed
-    assert int(r["good_out"]) >= n and int(r["bad_out"]) == 0
-
-
-@pytest.mark.parametrize("portable", [False, True], ids=["mpy-viper", "mpy-portable"])
-def test_signing_paths_request_no_heap(monkeypatch, portable):
-    """mem_total does not move over verifying, rejecting, signing, the clock and a save
-    (harness.heap_requests: no frame state from the heap either)."""
-    r = steady_run(portable, monkeypatch)
-    copy_heap = int(r["copy_heap"])
-    if copy_heap:
-        # The portable kernel's copy() has a frame of more than 11 words: every call asks
-        # the heap for it, and those calls are all the service's paths ask for.
-        assert portable
-        assert int(r["signing_heap"]) % copy_heap == 0 and int(r["save_heap"]) % copy_heap == 0
-    else:
-        assert int(r["signing_heap"]) == 0 and int(r["save_heap"]) == 0
-    # The whole steady state (parser, encoder, endpoint, status) and storage_ram's save:
-    # reported for the zero-heap work elsewhere.
-    print("signing steady state, %s: heap requested %s bytes per 100 frames; save into "
-          "storage_ram: %s" % (r["impl"], r["steady_heap"], r["ram_save_heap"]))
+    assert [int(f[x]) for x in ("accepted", "bad", "replayed", "unsigned")] == [n, k, 2 * k, k]
+    assert int(f["pings"]) == n  # every PING answered, signed
+    assert int(f["out"]) >= n and f["bad_out"] == "0"
+    assert f["own"] == "0" and f["locked"] == "ok" and f["saved"] == "1"
+    # The whole steady state (parser, encoder, endpoint, status), storage_ram's save and
+    # the copy kernel: printed for the zero-heap work on the shared paths.
+    print("signing steady state, %s: heap requested per 100 frames %s, storage_ram save %s, "
+          "copy %s" % (f["impl"], f["requested"], f["ram_save"], f["copy"]))
