@@ -27,10 +27,14 @@ def find_stx(src, pos, end):
 
 
 def copy(dst, src, offsets, n):
-    d = offsets & 0x3FF
+    # One index for both sides, and a while loop (a for-range loop keeps more on the
+    # stack): the frame stays within the ~11 words MicroPython keeps off the heap.
     s = offsets >> 10
-    for i in range(n):
-        dst[d + i] = src[s + i]
+    n += s
+    d = (offsets & 0x3FF) - s
+    while s < n:
+        dst[d + s] = src[s]
+        s += 1
 
 
 def zero(dst, start, end):

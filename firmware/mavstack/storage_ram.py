@@ -265,9 +265,11 @@ class RamStorage:
             e = self._create(name, size, 2)
         elif not self._flags(e) & _TWO:
             raise OSError(22)  # EINVAL: made by open(), it has one area
-        h = self._handle(e, 1 - self._current(e))
-        self.set_length(e, h.area, 0)
-        return h
+        return self._emptied(e, 1 - self._current(e))
+
+    def _emptied(self, e, area):
+        self.set_length(e, area, 0)
+        return self._handle(e, area)
 
     def commit(self, name):
         e = self._find(name)
