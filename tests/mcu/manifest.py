@@ -1,5 +1,7 @@
 # The test firmware: the board's frozen vehicle (firmware/manifest.py) plus the
-# library the MicroPython-side test scripts import (tests/mpy/harness.py); the scripts
+# libraries the MicroPython-side test scripts import (tests/mpy/harness.py,
+# wire_kinds.py); the scripts
 # themselves are sent over the raw REPL (tests/mcu_rig.py).
 include("../../firmware/manifest.py")
 module("harness.py", base_path="../mpy")
+module("wire_kinds.py", base_path="../mpy")

@@ -18,6 +18,7 @@ from mavstack.encoder import Encoder
 from mavstack.endpoint import Endpoint
 from mavstack.fields import cstr_len, f32_is_nan, i32, u16, u32
 from mavstack.parser import Parser
+from wire_kinds import pack_frame
 
 if MICROPYTHON:
     import micropython
@@ -30,7 +31,6 @@ else:
 
     unlock = lock
 
-FMT = common.FMT
 CHUNK = 4096
 
 # What the handlers add up, by index (all small ints).
@@ -86,44 +86,16 @@ def parse_locked(views, sizes):
 
 # --- encoding ------------------------------------------------------------------------
 
-NAME = b"SYSID_THISMAV"
-FLOATS = (0.0, 1.5, -2.25, float("nan"), float("inf"), 3.0e38, -0.0)
-
-
 def encode_locked(encoders, count, out, loop):
-    """count frames of six kinds, alternately MAVLink 1 and 2; each frame is also fed to
-    the loop parser and copied into out. Returns bytes written."""
-    f_hb, f_att, f_gps = FMT[0], FMT[30], FMT[24]
-    f_pv, f_cmd, f_mi = FMT[22], FMT[76], FMT[73]
-    fl = FLOATS
+    """count frames (wire_kinds.py), alternately MAVLink 1 and 2; each frame is also fed
+    to the loop parser and copied into out. Returns bytes written."""
     pos = 0
     lock()
     try:
         for i in range(count):
             enc = encoders[i & 1]
-            off = enc.begin()
+            n = pack_frame(enc, i)  # one source per encoder
             buf = enc.buf
-            k = i % 6
-            x = fl[i % 7]
-            if k == 0:
-                struct.pack_into(f_hb, buf, off, i, 2, 3, 81, 4, 3)
-                msgid = 0
-            elif k == 1:
-                struct.pack_into(f_att, buf, off, i, x, x, x, 0.0, 0.0, 0.0)
-                msgid = 30
-            elif k == 2:
-                struct.pack_into(f_gps, buf, off, i * 1000, -i, i, 0, 0, 0, 0, 0, 3, 9, 0, 0, 0, 0, 0, 0)
-                msgid = 24
-            elif k == 3:
-                struct.pack_into(f_pv, buf, off, x, 300, i & 0xFFFF, NAME, 9)
-                msgid = 22
-            elif k == 4:
-                struct.pack_into(f_cmd, buf, off, x, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 400 + (i & 7), 1, 1, 0)
-                msgid = 76
-            else:
-                struct.pack_into(f_mi, buf, off, 0.0, x, 0.0, 0.0, i, -i, x, i & 0xFFFF, 16, 1, 1, 3, 0, 1, 0)
-                msgid = 73
-            n = enc.finish(msgid, 1, 1 + (i & 1))  # one source per encoder
             loop.feed(buf, n)
             for j in range(n):
                 out[pos + j] = buf[j]

@@ -7,8 +7,8 @@ the frame states the VM puts on the heap), then under heap_lock() (where anythin
 is a MemoryError):
   parse   read STREAM_BYTES bytes of a damaged stream from the UART into a Parser; each
           delivered frame's id and full-length payload go into a CRC-16 digest
-  encode  ENCODE_COUNT frames of six kinds, alternately MAVLink 1 and 2, written to the
-          UART for the host to decode with pymavlink
+  encode  ENCODE_COUNT frames of six kinds (wire_kinds.py), alternately MAVLink 1 and 2,
+          written to the UART for the host to decode with pymavlink
 Prints `parse N digest D stats ...`, `requested B` and `encode N` per round.
 """
 import micropython
@@ -19,14 +19,11 @@ from mavstack.encoder import Encoder
 from mavstack.kernels import crc16, IMPL
 from mavstack.parser import Parser
 from mavstack.qemu import UartTransport
+from wire_kinds import pack_frame
 
 import sys
-import struct
 
 CRC_LEN = common.CRC_LEN
-FMT = common.FMT
-NAME = b"SYSID_THISMAV"
-FLOATS = (0.0, 1.5, -2.25, float("nan"), float("inf"), 3.0e38, -0.0)
 
 
 class Digest:
@@ -58,35 +55,9 @@ def parse(uart, parser, buf, total):
 
 
 def encode(uart, encoders, count):
-    f_hb, f_att, f_gps = FMT[0], FMT[30], FMT[24]
-    f_pv, f_cmd, f_mi = FMT[22], FMT[76], FMT[73]
-    fl = FLOATS
     for i in range(count):
         enc = encoders[i & 1]
-        off = enc.begin()
-        buf = enc.buf
-        k = i % 6
-        x = fl[i % 7]
-        if k == 0:
-            struct.pack_into(f_hb, buf, off, i, 2, 3, 81, 4, 3)
-            msgid = 0
-        elif k == 1:
-            struct.pack_into(f_att, buf, off, i, x, x, x, 0.0, 0.0, 0.0)
-            msgid = 30
-        elif k == 2:
-            struct.pack_into(f_gps, buf, off, i * 1000, -i, i, 0, 0, 0, 0, 0, 3, 9, 0, 0, 0, 0, 0, 0)
-            msgid = 24
-        elif k == 3:
-            struct.pack_into(f_pv, buf, off, x, 300, i & 0xFFFF, NAME, 9)
-            msgid = 22
-        elif k == 4:
-            struct.pack_into(f_cmd, buf, off, x, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 400 + (i & 7), 1, 1, 0)
-            msgid = 76
-        else:
-            struct.pack_into(f_mi, buf, off, 0.0, x, 0.0, 0.0, i, -i, x, i & 0xFFFF, 16, 1, 1, 3, 0, 1, 0)
-            msgid = 73
-        n = enc.finish(msgid, 1, 1 + (i & 1))
-        uart.write(buf, n)
+        uart.write(enc.buf, pack_frame(enc, i))
 
 
 def main(total, count):
