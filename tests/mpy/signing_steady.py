@@ -236,28 +236,11 @@ class FlatStorage:
         self.commits += 1
 
 
-def small_copy(dst, src, offsets, n):
-    # kernels.copy's contract in a frame of at most 11 words: it stands in for the shared
-    # kernel while own= is measured, if the kernel's own frame comes from the heap (copy=).
-    s = offsets >> 10
-    n += s
-    d = (offsets & 0x3FF) - s
-    while s < n:
-        dst[d + s] = src[s]
-        s += 1
-
-
-def own_requests(t, copy_heap):
+def own_requests(t):
     # The service's own paths: verify, reject, sign, tick with sync, save into a stub.
     flat = FlatStorage()
-    kernel = signing.copy
-    if copy_heap:
-        signing.copy = sha256.copy = small_copy
-    try:
-        own = heap_requests(t.paths)
-        saved = t.save_to(flat)
-    finally:
-        signing.copy = sha256.copy = kernel
+    own = heap_requests(t.paths)
+    saved = t.save_to(flat)
     if not (flat.commits and flat.n == 42):
         return "unsaved"
     return saved if saved == "MemoryError" else own + saved
@@ -267,7 +250,7 @@ def main(n, lock):
     t = Traffic(n)
     svc = t.svc
     copy_heap = heap_requests(t.copy6)
-    own = own_requests(t, copy_heap)
+    own = own_requests(t)
     requested = heap_requests(t.stretch)
     ram_save = t.save_to(t.b.ep.storage)
     saved = t.b.ep.storage.exists("signing_key")
