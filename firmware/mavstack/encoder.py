@@ -6,7 +6,7 @@ Usage, allocation-free per frame:
     n = enc.finish(msgid, sysid, compid)    # frame is enc.buf[0:n]; 0 if not sendable
 """
 from .compat import const
-from .kernels import crc16, crc_accumulate, copy, zero
+from .kernels import crc16, copy, zero
 from .parser import STX_V1, STX_V2, HEADER_V1, HEADER_V2, FRAME_MAX, IFLAG_SIGNED
 
 
@@ -33,26 +33,29 @@ class Encoder:
         With msgid, the rest of that message's payload is zeroed: bytes left from an
         earlier, longer frame must not go out as its tail.
         """
-        off = self.begin()
+        off = HEADER_V2 if self.version == 2 else HEADER_V1
         copy(self.buf, payload, off, n)
         info = self.crc_len.get(msgid)
         if info is not None and n < info >> 16:
-            zero(self.buf, off + n, off + (info >> 16))
+            info = off + (info >> 16)  # the payload's end
+            zero(self.buf, off + n, info)
         return off
 
+    # finish and _seal keep few locals: MicroPython takes a frame state of more than
+    # about 11 words (locals plus value stack) from the heap on every call.
     def finish(self, msgid, sysid, compid):
         info = self.crc_len.get(msgid)
         if info is None:
             return 0
         buf = self.buf
         if self.version == 2:
-            plen = info >> 16
             # Trailing zeros are implied on the wire; the first byte always stays.
-            while plen > 1 and buf[HEADER_V2 + plen - 1] == 0:
-                plen -= 1
+            end = HEADER_V2 + (info >> 16)
+            while end > HEADER_V2 + 1 and buf[end - 1] == 0:
+                end -= 1
             buf[0] = STX_V2
-            buf[1] = plen
-            buf[2] = 0
+            buf[1] = end - HEADER_V2
+            buf[2] = 0 if self.sign is None else IFLAG_SIGNED
             buf[3] = 0
             buf[4] = self.seq
             buf[5] = sysid
@@ -60,28 +63,33 @@ class Encoder:
             buf[7] = msgid & 0xFF
             buf[8] = (msgid >> 8) & 0xFF
             buf[9] = msgid >> 16
-            if self.sign is not None:
-                buf[2] = IFLAG_SIGNED
-            end = HEADER_V2 + plen
         else:
             if msgid > 255:
                 return 0
-            plen = (info >> 8) & 0xFF
+            end = HEADER_V1 + ((info >> 8) & 0xFF)
             buf[0] = STX_V1
-            buf[1] = plen
+            buf[1] = end - HEADER_V1
             buf[2] = self.seq
             buf[3] = sysid
             buf[4] = compid
             buf[5] = msgid
-            end = HEADER_V1 + plen
-        crc = crc_accumulate(crc16(buf, 1, end, 0xFFFF), info & 0xFF)
+        # CRC_EXTRA goes where the CRC's first byte will, so one kernel call covers it.
+        buf[end] = info & 0xFF
+        return self._seal(end)
+
+    def _seal(self, end):
+        """The CRC over buf[1:end + 1] into buf[end:end + 2], the sequence number on, the
+        signature if signing: returns the frame's length."""
+        buf = self.buf
+        crc = crc16(buf, 1, end + 1, 0xFFFF)
         buf[end] = crc & 0xFF
         buf[end + 1] = crc >> 8
         self.seq = (self.seq + 1) & 0xFF
         self.frames += 1
+        end += 2
         if self.sign is not None and self.version == 2:
-            return end + 2 + self.sign(buf, end + 2)
-        return end + 2
+            return end + self.sign(buf, end)
+        return end
 
     def clear(self, n):
         """Zero the payload area before packing a message field by field."""

@@ -72,33 +72,35 @@ class Parser:
         pos = 0
         while True:
             if self._rpos < self._rlen:
-                self._rpos = self._step(self._replay, self._rpos, self._rlen, True)
+                self._rpos = self._step(self._replay, self._rpos, self._rlen)
             elif pos < n:
-                pos = self._step(data, pos, n, False)
+                pos = self._step(data, pos, n)
             else:
                 return
 
-    def _step(self, src, pos, end, replaying):
+    # The per-frame path keeps few locals: MicroPython takes a frame state of more than
+    # about 11 words (locals plus value stack) from the heap on every call. Bytes being
+    # replayed are told by their buffer (src is self._replay).
+    def _step(self, src, pos, end):
         cnt = self._cnt
-        buf = self.buf
         if cnt == 0:
-            p = find_stx(src, pos, end)
-            self.bytes_discarded += p - pos
-            if p >= end:
+            k = find_stx(src, pos, end)
+            self.bytes_discarded += k - pos
+            if k >= end:
                 return end
-            stx = src[p]
-            buf[0] = stx
-            cnt = 1
-            pos = p + 1
-            self._want = HEADER_V2 if stx == STX_V2 else HEADER_V1
+            self._rstart = k if src is self._replay else -1
+            pos = k + 1
+            k = src[k]  # the start marker
+            self.buf[0] = k
+            self._want = HEADER_V2 if k == STX_V2 else HEADER_V1
             self._have_header = False
-            self._rstart = p if replaying else -1
+            cnt = 1
         # Header, then the rest: a frame already all in src takes one call.
         while True:
             k = self._want - cnt
             if k > end - pos:
                 k = end - pos
-            copy(buf, src, cnt | pos << 10, k)
+            copy(self.buf, src, pos << 10 | cnt, k)
             cnt += k
             pos += k
             self._cnt = cnt
@@ -112,7 +114,7 @@ class Parser:
                 self._cnt = 0
                 self._deliver()
                 return pos
-            return self._reject(pos, replaying)
+            return self._reject(pos, src is self._replay)
 
     def _header(self):
         buf = self.buf

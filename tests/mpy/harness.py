@@ -92,17 +92,22 @@ class Ring:
         self.head = 0
         self.count = 0
 
+    # While loops and few locals: MicroPython takes a frame state of more than about 11
+    # words (locals plus value stack; a for loop's iterator is four) from the heap on
+    # every call, and these run for every read and write of the in-memory link.
     def put(self, src, n):
-        size = len(self.buf)
+        buf = self.buf
+        size = len(buf)
         if n > size - self.count:
             return 0
-        buf = self.buf
         i = (self.head + self.count) % size
-        for k in range(n):
+        k = 0
+        while k < n:
             buf[i] = src[k]
             i += 1
             if i == size:
                 i = 0
+            k += 1
         self.count += n
         return n
 
@@ -113,11 +118,13 @@ class Ring:
         buf = self.buf
         size = len(buf)
         i = self.head
-        for k in range(n):
+        k = 0
+        while k < n:
             dst[k] = buf[i]
             i += 1
             if i == size:
                 i = 0
+            k += 1
         self.head = i
         self.count -= n
         return n
