@@ -1,6 +1,8 @@
 """Allocation-free per frame, proven on the unix port under micropython.heap_lock() with
 both kernel sets: 10,000+ damaged mixed frames parsed, 10,000 frames encoded, and a Link
-in an Endpoint dispatching to handlers that read fields and answer."""
+in an Endpoint dispatching to handlers that read fields and answer; each phase also
+run unlocked with micropython.mem_total() counting, which must stay at 0 (frame states
+of functions with many locals go on the heap there, call by call)."""
 import contextlib
 import io
 import math
@@ -108,6 +110,8 @@ def test_heap_locked_parse_encode_and_link(tmp_path, damaged_stream, portable):
     assert kinds.count(0xFE) > 2000 and kinds.count(0xFD) > 6000 and len(truncated) > 2000
     got = run_heaplock("mpy", portable, stream, tmp_path)
     assert got["kernels"] == ("portable" if portable else "viper")
+    # Each phase also ran unlocked, counted with mem_total: no frame state on the heap.
+    assert got["requested"] == "parse=0 encode=0 link=0"
 
     # Parsing: every intact frame delivered, fields read as struct reads them.
     want = expected_acc(intact)

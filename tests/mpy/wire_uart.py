@@ -40,24 +40,46 @@ class Digest:
             self.signed += 1
 
 
-def parse(uart, parser, buf, total):
-    got = 0
+class Round:
+    """One round's state: a fresh parser (digest on), the UART and what to do. The
+    functions below take it whole: with few locals their frames stay off the heap,
+    and the unlocked round counts everything they ask for."""
+
+    def __init__(self, uart, buf, encoders, total, count):
+        self.uart = uart
+        self.buf = buf
+        self.encoders = encoders
+        self.total = total
+        self.count = count
+        self.got = 0
+        self.d = Digest()
+        self.parser = Parser(CRC_LEN, self.d.on_frame)
+        self.d.parser = self.parser
+
+
+def parse(r):
     quiet = ticks_ms()
-    while got < total:
-        n = uart.readinto(buf, total - got)  # what follows is the next round's
+    while r.got < r.total:
+        n = r.uart.readinto(r.buf, r.total - r.got)  # what follows is the next round's
         if n:
-            parser.feed(buf, n)
-            got += n
+            r.parser.feed(r.buf, n)
+            r.got += n
             quiet = ticks_ms()
         elif ticks_diff(ticks_ms(), quiet) > 5000:
-            return got
-    return got
+            return
 
 
-def encode(uart, encoders, count):
-    for i in range(count):
-        enc = encoders[i & 1]
-        uart.write(enc.buf, pack_frame(enc, i))
+def encode(r):
+    i = 0
+    while i < r.count:
+        enc = r.encoders[i & 1]
+        r.uart.write(enc.buf, pack_frame(enc, i))
+        i += 1
+
+
+def run(r):
+    parse(r)
+    encode(r)
 
 
 def main(total, count):
@@ -66,20 +88,19 @@ def main(total, count):
     buf = bytearray(512)
     encoders = (Encoder(CRC_LEN, 1), Encoder(CRC_LEN, 2))
     for locked in (False, True):
-        d = Digest()
-        parser = Parser(CRC_LEN, d.on_frame)
-        d.parser = parser
+        r = Round(uart, buf, encoders, total, count)
         before = micropython.mem_total()
         if locked:
             micropython.heap_lock()
         try:
-            got = parse(uart, parser, buf, total)
-            encode(uart, encoders, count)
+            run(r)
         finally:
             if locked:
                 micropython.heap_unlock()
         requested = micropython.mem_total() - before
-        print("round", "locked" if locked else "unlocked", "bytes", got, "requested", 0 if locked else requested)
+        print("round", "locked" if locked else "unlocked", "bytes", r.got, "requested", 0 if locked else requested)
+        d = r.d
+        parser = r.parser
         print("parse", d.frames, "digest", d.crc, "signed", d.signed, "stats", parser.frames, parser.crc_errors,
               parser.bytes_discarded, parser.unknown_ids, parser.bad_frames)
         print("encode", count)
