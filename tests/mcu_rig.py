@@ -159,8 +159,19 @@ class EmulatedBoard:
         """The REPL again on qemu_m0's one UART, once the vehicle has returned to it."""
         from mpremote.transport_serial import SerialTransport
 
-        self.repl = SerialTransport(self.ptys[0], 115200)
-        self.repl.enter_raw_repl(soft_reset=False)
+        # Until the vehicle has stopped, what is sent is MAVLink to it: ask for the raw
+        # REPL until it answers (mpremote's own entry would wait for ever).
+        repl = SerialTransport(self.ptys[0], 115200)
+        s = repl.serial
+        for _ in range(20):
+            s.write(b"\r\x01")
+            time.sleep(0.5)
+            if b"raw REPL; CTRL-B to exit" in s.read(s.in_waiting):
+                repl.enter_raw_repl(soft_reset=False)  # the board listens now: the usual way
+                self.repl = repl
+                return
+        repl.close()
+        raise BoardError("the board's REPL did not come back")
 
     def console(self, wait=0.2):
         """What the REPL UART printed (qemu_m3; qemu_m0 shares it with MAVLink)."""
