@@ -11,13 +11,7 @@ import sys
 from mavstack.compat import ticks_ms, sleep_ms
 from mavstack.endpoint import Endpoint, Reboot, Shutdown
 from mavstack.storage import Storage
-from mavstack.uptime import Clock
 from mavstack.transport import open_transport
-
-
-def _here():
-    path = __file__ if "/" in __file__ else "./" + __file__
-    return path.rsplit("/", 1)[0]
 
 
 def parse_args(argv):
@@ -49,7 +43,7 @@ def load_board(name):
 
         return board
     # Running from the repository: profiles live in ../boards.
-    boards = _here() + "/../boards"
+    boards = (__file__ if "/" in __file__ else "./" + __file__).rsplit("/", 1)[0] + "/../boards"
     if boards not in sys.path:
         sys.path.append(boards)
     return __import__(name)
@@ -64,6 +58,8 @@ def build(board, opts):
     ep.options = opts.get("options", {})
     offset = ep.setting("UPTIME_OFFSET_MS", 0)  # tests: start late, to see uptimes past 2^30
     if offset:
+        from mavstack.uptime import Clock  # (only then: a board may do without the clock)
+
         ep.clock = Clock(ep.now, offset)
     if opts.get("storage") or not hasattr(board, "storage"):
         ep.storage = Storage(opts.get("storage") or board.STORAGE)
@@ -74,7 +70,7 @@ def build(board, opts):
     udp_rate = ep.setting("UDP_BYTES_PER_S", 200000)
     if specs:
         for spec in specs:
-            ep.add_link(open_transport(spec, udp_rate))
+            ep.add_link(open_transport(spec, udp_rate, ep.setting("UDP_RX_CHUNK", 0)))
     else:
         for transport in board.transports():
             ep.add_link(transport)

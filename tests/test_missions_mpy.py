@@ -101,11 +101,6 @@ LEAN_MESSAGES = ("MISSION_REQUEST_PARTIAL_LIST,MISSION_WRITE_PARTIAL_LIST,MISSIO
                  "MISSION_SET_CURRENT,MISSION_CURRENT,MISSION_REQUEST_LIST,MISSION_COUNT,MISSION_CLEAR_ALL,"
                  "MISSION_ITEM_REACHED,MISSION_ACK,MISSION_REQUEST_INT,MISSION_ITEM_INT")
 LEAN_BOARD = '''"""Missions only, for a board with a few tens of KB of RAM."""
-import gc
-
-import mavstack.services.missions  # the largest module first, while the heap is in one piece
-
-gc.collect()
 NAME = "lean"
 DIALECT = "missions_lean"
 SYSID = 1
@@ -116,6 +111,7 @@ MISSION_CAPACITY = 500
 FENCE_CAPACITY = 0  # no geofence or rally points on this board
 RALLY_CAPACITY = 0
 UDP_BYTES_PER_S = 200000
+UDP_RX_CHUNK = 1024  # the link reads 1 KB at a time: mission items come one at a time
 STORAGE = "storage"
 '''
 
@@ -161,10 +157,12 @@ def test_500_items_in_64k_from_mpy(tmp_path):
     port = free_udp_port()
     m = mavutil.mavlink_connection("udpin:127.0.0.1:%d" % port, source_system=255, source_component=190,
                                    dialect="common")
-    env = dict(os.environ, MICROPYPATH=str(mpy))
+    # Paths relative to its directory, as on a board: the heap must not depend on where
+    # pytest makes its directories (each module's __file__ is interned).
+    env = dict(os.environ, MICROPYPATH=os.path.relpath(str(mpy), str(tmp_path)))
     # udpout: the vehicle sends to the ground station (SITL style) and hears its replies.
     p = subprocess.Popen([MICROPYTHON, "-X", "heapsize=64K", "-m", "main", "--board", "lean",
-                          "--link", "udpout:127.0.0.1:%d" % port, "--storage", str(tmp_path / "st")],
+                          "--link", "udpout:127.0.0.1:%d" % port, "--storage", "st"],
                          cwd=str(tmp_path), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         assert recv(m, "MISSION_CURRENT", 10) is not None, "no MISSION_CURRENT:\n" + _output(p)

@@ -6,7 +6,6 @@ ids it handles with `on()`, and, if it has periodic work, a `tick(now_ms)`.
 """
 from .compat import ticks_ms
 from .link import Link
-from .uptime import Clock
 
 
 class Reboot(Exception):
@@ -23,14 +22,15 @@ SHUTDOWN = Shutdown()
 
 
 class Endpoint:
+    _clock = None  # made by the first service that tells the time (see clock)
+
     def __init__(self, dialect, sysid=1, compid=1):
         self.dialect = dialect
         self.sysid = sysid
         self.compid = compid
         self.links = []
-        self.now = ticks_ms()
-        self.clock = Clock(self.now)  # uptime and time of day, as bytes (uptime.py)
-        self._handlers = {}  # msgid -> [handler(link, payload), ...]
+        self.now = self._born = ticks_ms()
+        self._handlers = {}  # msgid -> (handler(link, payload), ...)
         self._tickers = []
         self.services = {}
         # Shared between services, filled as they attach:
@@ -44,9 +44,27 @@ class Endpoint:
         self.links.append(link)
         return link
 
+    @property
+    def clock(self):
+        """Uptime and time of day as bytes (uptime.py), counted from the endpoint's start.
+        Made when the first service attaches that does not say CLOCK = False, or on first
+        use: a board whose services never tell the time (missions only) does without it."""
+        if self._clock is None:
+            from .uptime import Clock
+
+            self._clock = Clock(self._born)
+            self._clock.advance(self.now)
+        return self._clock
+
+    @clock.setter
+    def clock(self, clock):
+        self._clock = clock
+
     def add(self, service, name=None):
         """Attach a service; it registers its messages in its attach(endpoint)."""
         self.services[name or service.NAME] = service
+        if getattr(service, "CLOCK", True):
+            self.clock  # made now, at start-up, rather than on a hot path
         service.attach(self)
         if hasattr(service, "tick"):
             self._tickers.append(service)
@@ -56,7 +74,8 @@ class Endpoint:
         """Call handler(link, payload) for every frame with this id (if the dialect has it)."""
         if msgid not in self.dialect.CRC_LEN:
             return False
-        self._handlers.setdefault(msgid, []).append(handler)
+        # A tuple: one small object per message id (a list takes two).
+        self._handlers[msgid] = self._handlers.get(msgid, ()) + (handler,)
         return True
 
     def setting(self, name, default=None):
@@ -115,7 +134,8 @@ class Endpoint:
         self.now = now
         for link in self.links:
             link.poll()
-        self.clock.advance(now)
+        if self._clock is not None:
+            self._clock.advance(now)
         for svc in self._tickers:
             svc.tick(now)
 

@@ -28,15 +28,18 @@ class UdpTransport:
     MicroPython's readinto fills the whole buffer with as many queued datagrams as
     fit and cuts short the one that does not (its tail is lost), so a link reads UDP
     in rx_chunk bytes, far more than a burst of ground-station traffic; a read that
-    fills them is counted in rx_overruns.
+    fills them is counted in rx_overruns. A board short of RAM may read in less
+    (UDP_RX_CHUNK): a ground station sends a mission item at a time.
     """
 
     rx_chunk = 4096
 
-    def __init__(self, mode, host, port, bytes_per_s=UDP_BYTES_PER_S):
+    def __init__(self, mode, host, port, bytes_per_s=UDP_BYTES_PER_S, rx_chunk=0):
         import socket
         import select
 
+        if rx_chunk:
+            self.rx_chunk = rx_chunk
         self._socket = socket
         self.mode = mode
         self.host = host
@@ -133,12 +136,13 @@ class UdpTransport:
             self._listen.close()
 
 
-def open_transport(spec, udp_bytes_per_s=UDP_BYTES_PER_S):
-    """Build a transport from udpout:HOST:PORT, udpin:ADDR:PORT or serial:DEVICE:BAUD."""
+def open_transport(spec, udp_bytes_per_s=UDP_BYTES_PER_S, udp_rx_chunk=0):
+    """Build a transport from udpout:HOST:PORT, udpin:ADDR:PORT or serial:DEVICE:BAUD
+    (udp_rx_chunk: bytes a UDP link reads at a time, 0 for UdpTransport.rx_chunk)."""
     kind, _, rest = spec.partition(":")
     if kind in ("udpout", "udpin"):
         host, _, port = rest.rpartition(":")
-        return UdpTransport(kind, host or "0.0.0.0", int(port), udp_bytes_per_s)
+        return UdpTransport(kind, host or "0.0.0.0", int(port), udp_bytes_per_s, udp_rx_chunk)
     if kind == "serial":
         from .transport_serial import SerialTransport
 

@@ -371,10 +371,8 @@ def meter(b, stores):
     global _copy, _meter
     m = _meter = Meter()
     ep = b.ep
-    for msgid in ep._handlers:
-        handlers = ep._handlers[msgid]
-        for i in range(len(handlers)):
-            handlers[i] = Own(m, handlers[i]).call2
+    for msgid in ep._handlers:  # a tuple of handlers per message id
+        ep._handlers[msgid] = tuple(Own(m, h).call2 for h in ep._handlers[msgid])
     missions = ep.services["missions"]
     missions.tick = Own(m, missions.tick).call1
     for link in ep.links:

@@ -22,7 +22,7 @@ the u32 generation is kept as two 16-bit halves (gen_hi, gen_lo) and the plan id
 written as bytes (put_plan_id); `gen` and `plan_id` make the ints for other callers.
 """
 from ..compat import const
-from ..kernels import crc16
+from ..kernels import crc16, zero
 
 RECORD_SIZE = const(32)
 HEADER_SIZE = const(16)
@@ -32,10 +32,10 @@ _MAGIC2 = const(0x4E)
 _MAGIC3 = const(0x01)
 _CMD_DO_JUMP = const(177)
 
-EMPTY = const(0)  # slot states at boot
-VALID = const(1)
-DAMAGED = const(2)  # header checks out, records do not: its generation is known
-GARBAGE = const(3)  # header itself is wrong
+_EMPTY = const(0)  # slot states at boot
+_VALID = const(1)
+_DAMAGED = const(2)  # header checks out, records do not: its generation is known
+_GARBAGE = const(3)  # header itself is wrong
 
 
 class MissionStore:
@@ -87,7 +87,7 @@ class MissionStore:
         s = self._slots
         newer = self._newer(1, 0)
         # The valid slot with the higher generation (slot 0 on a tie), -1 for none.
-        best = 1 if s[5] == VALID and (newer or s[0] != VALID) else (0 if s[0] == VALID else -1)
+        best = 1 if s[5] == _VALID and (newer or s[0] != _VALID) else (0 if s[0] == _VALID else -1)
         # A damaged slot that is provably older than the winner is a harmless leftover.
         self.corrupt = self._bad(0, best) or self._bad(1, best)
         self._active = 0
@@ -105,7 +105,7 @@ class MissionStore:
         self.gen_lo = s[5 * best + 2]
 
     def _wipe(self):
-        self._blank()
+        zero(self._hdr, 0, HEADER_SIZE)
         for f in self._files:
             f.seek(0)
             f.write(self._hdr)
@@ -118,14 +118,14 @@ class MissionStore:
         st = self._state(self._files[i])
         s[o] = st
         h = self._hdr
-        known = st == VALID or st == DAMAGED  # the header checks out: its fields count
+        known = st == _VALID or st == _DAMAGED  # the header checks out: its fields count
         s[o + 1] = h[10] | h[11] << 8 if known else 0
         s[o + 2] = h[8] | h[9] << 8 if known else 0
         s[o + 3] = h[6] | h[7] << 8
         s[o + 4] = h[12] | h[13] << 8
 
     def _state(self, f):
-        """EMPTY, VALID, DAMAGED or GARBAGE: one slot file (its header left in _hdr)."""
+        """_EMPTY, _VALID, _DAMAGED or _GARBAGE: one slot file (its header left in _hdr)."""
         hdr = self._hdr
         f.seek(0)
         n = f.readinto(hdr)
@@ -133,15 +133,15 @@ class MissionStore:
         while i < n and not hdr[i]:
             i += 1
         if i == n:  # nothing read, or zeros
-            return EMPTY
+            return _EMPTY
         if (n < HEADER_SIZE or hdr[0] != _MAGIC0 or hdr[1] != _MAGIC1 or hdr[2] != _MAGIC2
                 or hdr[3] != _MAGIC3 or crc16(hdr, 0, 14, 0xFFFF) != hdr[14] | hdr[15] << 8
                 or hdr[4] != self.mission_type or hdr[5] != RECORD_SIZE):
-            return GARBAGE
+            return _GARBAGE
         n = hdr[6] | hdr[7] << 8
         if n > self.capacity or not self._scan(f, n) or self._staged_crc != hdr[12] | hdr[13] << 8:
-            return DAMAGED
-        return VALID
+            return _DAMAGED
+        return _VALID
 
     def _newer(self, i, j):
         """Slot i's generation is above slot j's (compared by halves)."""
@@ -152,7 +152,7 @@ class MissionStore:
 
     def _bad(self, i, best):
         st = self._slots[5 * i]
-        return st == GARBAGE or (st == DAMAGED and (best < 0 or self._newer(i, best)))
+        return st == _GARBAGE or (st == _DAMAGED and (best < 0 or self._newer(i, best)))
 
     def _scan(self, f, count):
         """CRC and DO_JUMP count of a slot's first `count` records (into _staged_crc and
@@ -203,7 +203,7 @@ class MissionStore:
     def begin(self, keep=0):
         """Start a new plan in the spare slot, with the first `keep` items of the plan in force."""
         spare = self._files[1 - self._active]
-        self._blank()
+        zero(self._hdr, 0, HEADER_SIZE)
         spare.seek(0)
         spare.write(self._hdr)
         spare.flush()
@@ -217,11 +217,6 @@ class MissionStore:
             spare.write(self._rec)
             o += RECORD_SIZE
             keep -= 1
-
-    def _blank(self):
-        hdr = self._hdr
-        for i in range(HEADER_SIZE):
-            hdr[i] = 0
 
     def put(self, seq, rec):
         """Write record seq of the staged plan."""
@@ -269,12 +264,6 @@ class MissionStore:
         self.count = self._staged_count
         self.crc = self._staged_crc
         return True
-
-    def clear(self):
-        """Commit an empty plan."""
-        self.begin()
-        self.seal(0)
-        return self.commit()
 
     def close(self):
         for f in self._files:

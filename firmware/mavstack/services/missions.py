@@ -10,6 +10,10 @@ MISSION_REQUEST answered from flash; the ground station's final ACK is welcome, 
 needed. The seed's MISSION_REQUEST_PARTIAL_LIST pushes the range (paced to the link);
 MISSION_WRITE_PARTIAL_LIST updates a range of the plan in force.
 One transfer at a time: another ground station is told MAV_MISSION_DENIED meanwhile.
+Partial lists, MISSION_CLEAR_ALL, MISSION_SET_CURRENT and items outside an upload are
+handled in mission_rare.py, loaded when the first of them comes (at start-up on a board
+that locks its heap): a ground station seldom sends them, and a small board's heap
+holds that code only once it is used.
 The vehicle re-requests a missing item every retry_ms, and gives up after `retries`
 re-requests or timeout_ms of silence (OPERATION_CANCELLED, or ERROR to MAVLink 1).
 Fence and rally need MAVLink 2 (mission_type is an extension field).
@@ -35,7 +39,7 @@ puts a frame of more than 11 words (locals + stack) on the heap.
 import gc
 
 from ..compat import const, ticks_diff, ticks_add
-from ..fields import u16, i16, i32_cmp, f32_is_nan, f32_to_small
+from ..fields import u16, i32_cmp, f32_is_nan, f32_to_small
 from ..kernels import copy
 from .mission_store import MissionStore, RECORD_SIZE
 
@@ -87,13 +91,6 @@ _CAP_MISSION_INT = const(4)
 _CAP_MISSION_FENCE = const(16384)
 _CAP_MISSION_RALLY = const(32768)
 
-_ITEM_FRAME_BYTES = const(50)  # a MAVLink 2 MISSION_ITEM_INT, for pacing pushed items
-_PUSH_SHARE = const(2)  # pushed items use at most 1/2 of the link
-# Credit for pushed items: elapsed ms * bytes/s must stay a small int (< 2^30). The
-# credit is full (4 frames) well within a second on any link of 400 bytes/s or more,
-# and at 1 MB/s four frames go out every millisecond, so neither cap is ever felt.
-_PUSH_MAX_MS = const(1000)
-_PUSH_MAX_RATE = const(0x100000)
 _CURRENT_PERIOD_MS = const(1000)
 _FRAME_MISSION = const(2)
 # The requests about one plan, by msgid - 37: bits 0-2 the offset of target_system
@@ -165,21 +162,26 @@ _NAMES = ("mission", "fence", "rally")  # also their files' names in storage
 
 class Missions:
     NAME = "missions"
+    CLOCK = False  # tells no time: a board with missions alone makes no ep.clock
+    # Set on the instance where there is one (at start-up: no dict growth later).
+    extra = None  # {command: need} the application added to the mission rules (allow)
+    runner = None  # mission_runner.MissionRunner
+    rare = None  # mission_rare.py, once loaded (see _on_rare)
 
     def __init__(self, storage, capacities=(500, 100, 20), frames=(0, 2, 3, 5, 6), retry_ms=250,
                  retries=5, timeout_ms=5000, jump_slots=16, commands=()):
         # (Few attributes: on a small heap a bigger instance dict may not find room.)
-        self.stores = [MissionStore(storage, _NAMES[t], t, capacities[t]) if capacities[t] or t == 0 else None
-                       for t in range(3)]
+        self.stores = [None, None, None]
+        for t in range(3):
+            if capacities[t] or t == 0:
+                self.stores[t] = MissionStore(storage, _NAMES[t], t, capacities[t])
         self.frames = frames
         self.retry_ms = retry_ms
         self.retries = retries
         self.timeout_ms = timeout_ms
         self.jump_slots = jump_slots
-        self.extra = None  # {command: need} the application added to the mission rules
         for command in commands:
             self.allow(command)
-        self.runner = None
         self._rec = bytearray(RECORD_SIZE)
         # The transfer under way (one at a time) and its peer.
         self.state = _IDLE
@@ -219,16 +221,18 @@ class Missions:
         self.has_int = ep.has(_MSG_ITEM_INT) and ep.fmt(_MSG_ITEM_INT).startswith("<ffffiif") \
             and ep.has(_MSG_REQUEST_INT) and ep.fmt(_MSG_REQUEST_INT).startswith("<HBB")
         self.has_type = (ep.dialect.CRC_LEN.get(_MSG_COUNT, 0) >> 16) >= 5
-        for msgid, handler in ((_MSG_COUNT, self._on_count), (_MSG_WRITE_PARTIAL_LIST, self._on_write_partial),
-                               (_MSG_ITEM, self._on_item), (_MSG_REQUEST_LIST, self._on_request_list),
-                               (_MSG_REQUEST_PARTIAL_LIST, self._on_request_partial),
-                               (_MSG_REQUEST, self._on_request), (_MSG_CLEAR_ALL, self._on_clear_all),
-                               (_MSG_SET_CURRENT, self._on_set_current), (_MSG_ACK, self._on_ack)):
+        item = self._on_item  # (a bound method is an object: one each, shared by two ids)
+        request = self._on_request
+        rare = self._on_rare
+        for msgid, handler in ((_MSG_COUNT, self._on_count), (_MSG_WRITE_PARTIAL_LIST, rare),
+                               (_MSG_ITEM, item), (_MSG_REQUEST_LIST, self._on_request_list),
+                               (_MSG_REQUEST_PARTIAL_LIST, rare), (_MSG_REQUEST, request),
+                               (_MSG_CLEAR_ALL, rare), (_MSG_SET_CURRENT, rare), (_MSG_ACK, self._on_ack)):
             ep.on(msgid, handler)
         ep.capabilities |= _CAP_MISSION_FLOAT
         if self.has_int:
-            ep.on(_MSG_ITEM_INT, self._on_item)
-            ep.on(_MSG_REQUEST_INT, self._on_request)
+            ep.on(_MSG_ITEM_INT, item)
+            ep.on(_MSG_REQUEST_INT, request)
             ep.capabilities |= _CAP_MISSION_INT
         if self.has_type and stores[1] is not None:
             ep.capabilities |= _CAP_MISSION_FENCE
@@ -244,7 +248,7 @@ class Missions:
         if state == _UPLOAD and ticks_diff(now, self.t_sent) >= self.retry_ms:
             self._retry(now)
         elif state == _PUSH:
-            self._push(now)
+            self.rare.push(self, now)
         elif state == _DOWNLOAD and ticks_diff(now, self.t_heard) >= self.timeout_ms:
             self.state = _IDLE  # the ground station went away; nothing to undo
         # On change; and once a second unless the streams service schedules it (it is
@@ -336,23 +340,6 @@ class Missions:
             self.t_end = count - 1
             self._upload(link, store, 0)
 
-    def _on_write_partial(self, link, p):
-        store = self._store(link, p)
-        if store is None:
-            return
-        start = i16(p, 0)
-        end = i16(p, 2)
-        # The seed: a start beyond the current list is rejected (0 always starts a list).
-        if start < 0 or end < start or (start > 0 and start >= store.count):
-            self._reply(link, _INVALID_SEQUENCE, store.mission_type)
-        elif end >= store.capacity:  # the plan would have end + 1 items
-            self._reply(link, _NO_SPACE, store.mission_type)
-        else:
-            self.t_count = end + 1 if end >= store.count else store.count
-            self.t_seq = start
-            self.t_end = end
-            self._upload(link, store, store.count)
-
     def _upload(self, link, store, keep):
         """Ask for items t_seq .. t_end of a plan of t_count (keep: items copied first)."""
         self._start(link, _UPLOAD, store)
@@ -377,7 +364,7 @@ class Missions:
         if not self.ep.for_us(p[32], p[33]):
             return
         if self.state != _UPLOAD or not self._is_peer(link):
-            self._stray(link, p)
+            self._on_rare(link, p)  # a repeat of the last item whose ACK was lost?
             return
         if (p[37] if self.has_type else 0) != self.t_store.mission_type:
             return
@@ -390,14 +377,6 @@ class Missions:
             # that crossed our re-request) waits for the retry timer, so that duplicates
             # cannot breed more duplicates; anything else has the expected one re-requested.
             self._request(self.t_seq)
-
-    def _stray(self, link, p):
-        # The ACK of a completed upload was lost: the ground station repeats the last item.
-        rx = link.rx
-        mt = p[37] if self.has_type else 0
-        if (self.state == _IDLE and u16(p, 28) == self.done_seq and link is self.done_link
-                and rx.sysid << 16 | rx.compid << 8 | mt == self.done_key):
-            self._reply(link, _ACCEPTED, mt)
 
     def _take(self, link, p, seq):
         """The item expected: check it, store it, ask for the next or finish."""
@@ -471,10 +450,13 @@ class Missions:
     def _need(self, command):
         """What the command needs (_P*, _POS bits), -1 if this plan type does not take it."""
         mt = self.t_store.mission_type
-        need = _find(_RULES[mt], command)
-        if need < 0 and mt == _TYPE_MISSION and self.extra is not None:
-            need = self.extra.get(command, -1)
-        return need
+        rules = _RULES[mt]
+        for i in range(0, len(rules), 3):
+            if rules[i] | rules[i + 1] << 8 == command:
+                return rules[i + 2]
+        if mt == _TYPE_MISSION and self.extra is not None:
+            return self.extra.get(command, -1)
+        return -1
 
     def _xy(self, local, need, is_int):
         """x, y of the record: the seed's float degrees made integers, then range-checked."""
@@ -521,40 +503,6 @@ class Missions:
         store.put_plan_id(buf, off + 5)  # opaque_id, where the dialect has it
         link.send(_MSG_COUNT)
 
-    def _on_request_partial(self, link, p):
-        store = self._store(link, p)
-        if store is None:
-            return
-        start = i16(p, 0)
-        end = i16(p, 2)
-        if end < 0 or end >= store.count:
-            end = store.count - 1  # -1: to the end of the list
-        if start < 0 or start > end:
-            self._reply(link, _INVALID_SEQUENCE, store.mission_type)
-            return
-        self._start(link, _PUSH, store)
-        self.t_seq = start
-        self.t_end = end
-        self.t_credit = _ITEM_FRAME_BYTES
-        self._push(self.t_sent)
-
-    def _push(self, now):
-        # The items of a partial list go out at a share of the link's capacity.
-        link = self.t_link
-        elapsed = ticks_diff(now, self.t_sent)
-        if elapsed > 0:
-            self.t_sent = now
-            credit = self.t_credit + ((elapsed if elapsed < _PUSH_MAX_MS else _PUSH_MAX_MS)
-                                      * (link.bytes_per_s if link.bytes_per_s < _PUSH_MAX_RATE else _PUSH_MAX_RATE)
-                                      // (1000 * _PUSH_SHARE))
-            self.t_credit = credit if credit < 4 * _ITEM_FRAME_BYTES else 4 * _ITEM_FRAME_BYTES
-        while self.t_credit >= _ITEM_FRAME_BYTES and self.t_seq <= self.t_end:
-            self.t_credit -= _ITEM_FRAME_BYTES
-            self._send_item(link, self.t_store, self.t_seq, self.t_int)
-            self.t_seq += 1
-        if self.t_seq > self.t_end:
-            self.state = _IDLE
-
     def _on_request(self, link, p):
         # MISSION_REQUEST_INT is answered with MISSION_ITEM_INT, the seed's MISSION_REQUEST
         # with MISSION_ITEM; answered whenever no other ground station has a transfer open.
@@ -586,9 +534,12 @@ class Missions:
         if not store.read(seq, self._rec):
             return
         off = self._item_into(link, seq, store.mission_type)
-        if not as_int:  # the seed's MISSION_ITEM: x, y as float degrees (metres if local)
-            _floats(link.txbuf, off, self._rec[30] in _LOCAL_FRAMES)
-        link.send(_MSG_ITEM_INT if as_int else _MSG_ITEM)
+        if as_int:
+            link.send(_MSG_ITEM_INT)
+        else:  # the seed's MISSION_ITEM: x, y as float degrees (metres if local)
+            _unfix(link.txbuf, off + 16, self._rec[30] in _LOCAL_FRAMES)
+            _unfix(link.txbuf, off + 20, self._rec[30] in _LOCAL_FRAMES)
+            link.send(_MSG_ITEM)
 
     def _item_into(self, link, seq, mt):
         """MISSION_ITEM_INT's payload in link.txbuf from record seq (in self._rec) -> its offset."""
@@ -613,31 +564,17 @@ class Missions:
                 and (p[3] if self.has_type else 0) == self.t_store.mission_type):
             self.state = _IDLE
 
-    # --- clear, current -----------------------------------------------------------
-    def _on_clear_all(self, link, p):
-        if not self.ep.for_us(p[0], p[1]):
-            return
-        mt = self._admit(link, p[2] if self.has_type else 0, _CHANGE | _EVERY)
-        if mt >= 0:
-            self._reply(link, self._clear_types(mt), mt)
+    # --- what a ground station seldom sends ------------------------------------------
+    def _on_rare(self, link, p):
+        """Partial lists, MISSION_CLEAR_ALL, MISSION_SET_CURRENT, items outside an upload:
+        mission_rare.py, loaded on first use (at start-up where the heap gets locked)."""
+        if self.rare is None:
+            from . import mission_rare
 
-    def _clear_types(self, mt):
-        result = _ACCEPTED
-        for t in range(3):
-            store = self.stores[t]
-            if store is not None and (mt == _TYPE_ALL or mt == t):
-                result = self._clear(store) or result  # the last failure is reported
-        return result
+            self.rare = mission_rare
+        self.rare.on(self, link, p)
 
-    def _on_set_current(self, link, p):
-        if not self.ep.for_us(p[2], p[3]):
-            return
-        runner = self.runner
-        if runner is not None and self.ep.allows(link) and runner.set_current(u16(p, 0)):
-            return  # MISSION_CURRENT follows from the change
-        self.ep.statustext(4, "Mission: cannot set current item")  # MAV_SEVERITY_WARNING
-        self.send_current(link)
-
+    # --- current item -------------------------------------------------------------
     def send_current(self, link):
         off = link.begin()
         buf = link.txbuf
@@ -694,19 +631,6 @@ class Missions:
         # opaque_id (where the dialect has it): the new plan's id after an upload.
         self._put_id(link.txbuf, off + 4, 3 if result else mt)
         link.send(_MSG_ACK)
-
-
-def _find(rules, command):
-    for i in range(0, len(rules), 3):
-        if rules[i] | rules[i + 1] << 8 == command:
-            return rules[i + 2]
-    return -1
-
-
-def _floats(buf, off, local):
-    """MISSION_ITEM_INT's x, y at buf[off + 16], [off + 20] -> MISSION_ITEM's floats."""
-    _unfix(buf, off + 16, local)
-    _unfix(buf, off + 20, local)
 
 
 def _numbers(p, need):
@@ -861,4 +785,8 @@ def create(ep):
         from .mission_runner import MissionRunner
 
         MissionRunner(missions)
+    if ep.setting("HEAP_LOCK", False):  # no loading on first use once the heap is locked
+        from . import mission_rare
+
+        missions.rare = mission_rare
     return missions
