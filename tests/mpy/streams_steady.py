@@ -7,9 +7,16 @@ An endpoint with the commands and streams services on the in-memory link
 5 s before ticks_ms wraps (rates multiplied by SCALE, to overload a slow link).
 After a warm-up, TICKS ticks run between
 micropython.heap_lock() and heap_unlock() (on CPython, without the lock).
-Prints `ok ticks=N bytes=N us=N MSGID:COUNT ...` (frames of each stream received
-over the locked run), or the error. With `bench`, us is the mean wall time of one
-poll (reading the idle link and the scheduler's tick, its sends included).
+Before the locked run, the same ticks run unlocked with micropython.mem_total()
+counting: requested= the bytes the polls (link, scheduler, producers, sends, the
+in-memory link) asked of the heap, which must be 0 (frame states the VM takes from
+the heap for functions with many locals show there: under heap_lock they silently
+fall back to the C stack); app= those the application's slot writes asked for
+(a setter with nine or more parameters has more locals than fit, see telemetry.py).
+Prints `ok ticks=N bytes=N us=N requested=0 app=N MSGID:COUNT ...` (frames of each
+stream received over the locked run), `fail ...` the same when requested is not 0,
+or the error. With `bench`, us is the mean wall time of one poll (reading the idle
+link and the scheduler's tick, its sends included).
 """
 import sys
 
@@ -51,19 +58,50 @@ def write_slots(tm, v, i):
     tm.battery(12300, 450, 87, 120, v.cells)
 
 
-def run(b, v, ticks):
-    """ticks rounds of: write every slot, poll, read what came out -> us spent polling."""
-    tm = b.ep.telemetry
-    ep = b.ep
-    us = 0
-    for i in range(ticks):
-        write_slots(tm, v, i)
-        b.now = ticks_add(b.now, 1)
-        t0 = ticks_us()
-        ep.poll(b.now)
-        us += us_diff(ticks_us(), t0)
-        b.drain()
-    return us
+class State:
+    """What the loops below take whole (one argument, few locals: their frames stay off
+    the heap, so what is counted is what the stack and the slots ask for)."""
+
+    def __init__(self, b, v):
+        self.b = b
+        self.v = v
+        self.tm = b.ep.telemetry
+        self.us = 0  # spent polling
+        self.stack = 0  # bytes the polls asked of the heap (counted runs)
+        self.app = 0  # ... and the slot setters
+
+
+def poll(s):
+    b = s.b
+    b.now = ticks_add(b.now, 1)
+    t0 = ticks_us()
+    b.ep.poll(b.now)
+    s.us += us_diff(ticks_us(), t0)
+    b.drain()
+
+
+def run(s, ticks):
+    """ticks rounds of: write every slot, poll, read what came out."""
+    i = 0
+    while i < ticks:
+        write_slots(s.tm, s.v, i)
+        poll(s)
+        i += 1
+
+
+def run_counted(s, ticks):
+    """run(), unlocked, with micropython.mem_total() counting the polls (s.stack) and the
+    application's slot writes (s.app) apart."""
+    mem = micropython.mem_total
+    i = 0
+    while i < ticks:
+        m = mem()
+        write_slots(s.tm, s.v, i)
+        s.app += mem() - m
+        m = mem()
+        poll(s)
+        s.stack += mem() - m
+        i += 1
 
 
 def main():
@@ -79,23 +117,29 @@ def main():
         link.tx.version = 2
         link.negotiate = False
     streams = b.ep.services["streams"]
-    b.now = ticks_add(0, -(WARMUP + 5000))  # the wrap falls inside the measured run
-    v = Values()
+    counting = micropython is not None and hasattr(micropython, "mem_total")
+    # The wrap falls inside the locked run (after the warm-up and the counted run).
+    b.now = ticks_add(0, -(WARMUP + (ticks if counting else 0) + 5000))
+    s = State(b, Values())
     for msgid, hz in RATES:
         streams.set_rate(link, msgid, hz * scale)
-    run(b, v, WARMUP)
+    run(s, WARMUP)
+    if counting:
+        run_counted(s, ticks)
     before = [b.seen[msgid] for msgid, _ in RATES]
     tx = link.tx_bytes
+    s.us = 0
     if micropython is not None:
         micropython.heap_lock()
     try:
-        us = run(b, v, ticks)
+        run(s, ticks)
     finally:
         if micropython is not None:
             micropython.heap_unlock()
     counts = " ".join("%d:%d" % (RATES[k][0], b.seen[RATES[k][0]] - before[k]) for k in range(len(RATES)))
-    per_tick = us // ticks if bench else 0
-    print("ok ticks=%d bytes=%d us=%d %s" % (ticks, link.tx_bytes - tx, per_tick, counts))
+    per_tick = s.us // ticks if bench else 0
+    print("%s ticks=%d bytes=%d us=%d requested=%d app=%d %s" % (
+        "fail" if s.stack else "ok", ticks, link.tx_bytes - tx, per_tick, s.stack, s.app, counts))
 
 
 main()

@@ -110,11 +110,39 @@ class Pending:
 
     def progress(self, percent):
         self.percent = percent
-        self.service.ack(self.link, self.command, MAV_RESULT_IN_PROGRESS, percent, 0, self.sysid, self.compid)
+        self.service.ack(self, MAV_RESULT_IN_PROGRESS, percent, 0)
 
     def done(self, result, result_param2=0):
         self.service.settle(self.key, result, result_param2)
-        self.service.ack(self.link, self.command, result, 100, result_param2, self.sysid, self.compid)
+        self.service.ack(self, result, 100, result_param2)
+
+
+class _Guard:
+    """guard.run(handler, cmd): what the handler returned, or FAILED if it raised an
+    Exception, which is then kept in guard.error (None otherwise).
+
+    A with statement on itself rather than try/except ... as e: that makes a frame
+    state MicroPython takes from the heap on every call (over about 11 words).
+    """
+
+    def __init__(self):
+        self.error = None
+        self.result = MAV_RESULT_FAILED
+
+    def run(self, handler, cmd):
+        with self:
+            self.result = handler(cmd)
+        return self.result
+
+    def __enter__(self):
+        self.error = None
+
+    def __exit__(self, kind, e, tb):
+        self.error = e
+        if isinstance(e, Exception):
+            self.result = MAV_RESULT_FAILED
+            return True
+        return False
 
 
 class Commands:
@@ -123,6 +151,7 @@ class Commands:
     def __init__(self):
         self.cmd = Command()
         self.cmd._service = self
+        self._guard = _Guard()
         self._last_key = -1  # crc of the last command's sender + payload
         self._last_ms = 0
         self._last_result = 0
@@ -150,62 +179,69 @@ class Commands:
             command = command_id(command)
         self.handlers[command] = handler
 
+    # The per-command path is in small functions with few locals: MicroPython takes a
+    # frame state of more than about 11 words (locals plus value stack; a try adds
+    # three, or six with `as e`) from the heap on every call.
     def _on_long(self, link, p):
-        self._run(link, p, False, p[30], p[31], p[32])
+        self._run(link, p, False)
 
     def _on_int(self, link, p):
-        self._run(link, p, True, p[30], p[31], 0)
+        self._run(link, p, True)
 
-    def _run(self, link, p, is_int, target_system, target_component, confirmation):
-        if not self.ep.for_us(target_system, target_component):
+    def _run(self, link, p, is_int):
+        # target_system and target_component are at 30, 31 in both messages.
+        if not self.ep.for_us(p[30], p[31]):
             return
         self.received += 1
+        cmd = self._fill(link, p, is_int)
+        if cmd.key == self._last_key and ticks_diff(self.ep.now, self._last_ms) < _REPEAT_WINDOW_MS:
+            # An identical re-send: the answer again, not a second run.
+            self._last_ms = self.ep.now
+            self.ack(cmd, self._last_result, 0, self._last_param2)
+            # The requested message may be what got lost: send it again.
+            self._send_reply(link, self._last_reply, self._last_reply_all)
+            return
+        self._execute(cmd)
+
+    def _fill(self, link, p, is_int):
         cmd = self.cmd
-        rx = link.rx
         cmd.link = link
         cmd.payload = p
         cmd.is_int = is_int
         cmd.command = u16(p, 28)
-        cmd.sysid = rx.sysid
-        cmd.compid = rx.compid
-        cmd.confirmation = confirmation
+        cmd.sysid = link.rx.sysid
+        cmd.compid = link.rx.compid
+        cmd.confirmation = 0 if is_int else p[32]
         cmd.frame = p[32] if is_int else 0
         cmd.result_param2 = 0
         cmd.reply = -1
         cmd.reply_all = False
         # A retry is the same sender and the same bytes but for the confirmation count.
-        key = crc16(p, 0, 30, rx.sysid << 8 | rx.compid)
+        cmd.key = crc16(p, 0, 30, cmd.sysid << 8 | cmd.compid)
         if is_int:
-            key = crc16(p, 32, 33, key) | 0x10000  # the frame changes what x, y, z mean
-        cmd.key = key
-        now = self.ep.now
-        if key == self._last_key and ticks_diff(now, self._last_ms) < _REPEAT_WINDOW_MS:
-            self._last_ms = now
-            self.ack(link, cmd.command, self._last_result, 0, self._last_param2, cmd.sysid, cmd.compid)
-            # The requested message may be what got lost: send it again.
-            self._send_reply(link, self._last_reply, self._last_reply_all)
-            return
+            cmd.key = crc16(p, 32, 33, cmd.key) | 0x10000  # the frame changes what x, y, z mean
+        return cmd
+
+    def _execute(self, cmd):
         handler = self.handlers.get(cmd.command)
         if handler is None:
             result = MAV_RESULT_UNSUPPORTED
         else:
-            try:
-                result = handler(cmd)
-            except Exception as e:  # a faulty handler must not take the vehicle down
+            result = self._guard.run(handler, cmd)
+            if self._guard.error is not None:  # a faulty handler must not take the vehicle down
                 self.failed += 1
-                _report(e)
-                result = MAV_RESULT_FAILED
+                _report(self._guard.error)
                 cmd.reply = -1
         # Only a command that ran is remembered; a refused one may simply be tried again.
         ran = result == MAV_RESULT_ACCEPTED or result == MAV_RESULT_IN_PROGRESS
-        self._last_key = key if ran else -1
-        self._last_ms = now
+        self._last_key = cmd.key if ran else -1
+        self._last_ms = self.ep.now
         self._last_result = result
         self._last_param2 = cmd.result_param2
         self._last_reply = cmd.reply
         self._last_reply_all = cmd.reply_all
-        self.ack(link, cmd.command, result, 0, cmd.result_param2, cmd.sysid, cmd.compid)
-        self._send_reply(link, cmd.reply, cmd.reply_all)
+        self.ack(cmd, result, 0, cmd.result_param2)
+        self._send_reply(cmd.link, cmd.reply, cmd.reply_all)
 
     def settle(self, key, result, result_param2):
         """A deferred command finished: a re-send now gets its final result."""
@@ -219,11 +255,13 @@ class Commands:
         producer = self.ep.producers.get(msgid)
         if producer is None:
             return
-        if all_links:
-            for other in self.ep.links:
-                producer(other)
-        else:
+        if not all_links:
             producer(link)
+            return
+        i = 0  # (by index: a for loop's iterator is four more words of frame state)
+        while i < len(self.ep.links):
+            producer(self.ep.links[i])
+            i += 1
 
     def _request_message(self, cmd):
         # param1: message id; param7: 0 default / 1 requester / 2 broadcast.
@@ -236,13 +274,24 @@ class Commands:
         cmd.reply_all = cmd.int(7) == 2
         return MAV_RESULT_ACCEPTED
 
-    def ack(self, link, command, result, progress, result_param2, sysid, compid):
-        off = link.begin()
-        if self._ack_short:
-            struct.pack_into(self._ack_fmt, link.txbuf, off, command, result)
-        else:
-            struct.pack_into(self._ack_fmt, link.txbuf, off, command, result, progress, result_param2, sysid, compid)
-        link.send(_MSG_COMMAND_ACK)
+    def ack(self, to, result, progress, result_param2):
+        """COMMAND_ACK to the sender of `to` (the Command being handled, or a Pending:
+        its link, command, sysid and compid), field by field: packed whole, its values
+        would make a frame state MicroPython takes from the heap on every call."""
+        off = to.link.begin()
+        buf = to.link.txbuf
+        buf[off] = to.command & 0xFF
+        buf[off + 1] = to.command >> 8
+        buf[off + 2] = result
+        if not self._ack_short:  # the seed's COMMAND_ACK has only command and result
+            buf[off + 3] = progress
+            buf[off + 4] = result_param2 & 0xFF  # int32, little-endian (>> keeps the sign)
+            buf[off + 5] = (result_param2 >> 8) & 0xFF
+            buf[off + 6] = (result_param2 >> 16) & 0xFF
+            buf[off + 7] = (result_param2 >> 24) & 0xFF
+            buf[off + 8] = to.sysid
+            buf[off + 9] = to.compid
+        to.link.send(_MSG_COMMAND_ACK)
 
 
 def _report(e):

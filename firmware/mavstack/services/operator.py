@@ -7,8 +7,6 @@ holder (control_request 1), or when the holder's heartbeats stop for the GCS tim
 so that a second ground station that knows the passkey can take over a vehicle whose
 operator is gone. Without a passkey nobody needs control and every request is granted.
 """
-import struct
-
 from ..compat import const, ticks_diff
 from ..fields import cstr_len
 from .statustext import NOTICE
@@ -80,6 +78,11 @@ def on_change_operator_control(ep, link, p, operator):
     if p[0] != ep.sysid or p[1] > 1:
         return
     ack = _ACK_OK if operator is None else operator.request(link, p)
+    # gcs_system_id, control_request, ack: byte by byte, few values on the stack (a frame
+    # state over about 11 words is taken from the heap on every call).
     off = link.begin()
-    struct.pack_into("<BBB", link.txbuf, off, link.rx.sysid, p[1], ack)
+    buf = link.txbuf
+    buf[off] = link.rx.sysid
+    buf[off + 1] = p[1]
+    buf[off + 2] = ack
     link.send(_MSG_CHANGE_OPERATOR_CONTROL_ACK)

@@ -28,7 +28,7 @@ the links' parsers: sequence gaps against frames received (smoothed over ~10 s),
 frames that failed their CRC or were malformed (a running total). errors_count1 is
 the number of STATUSTEXTs dropped because the queue was full.
 """
-import struct
+from struct import pack_into
 
 from .. import VERSION
 from ..compat import const, ticks_ms, ticks_us, ticks_diff, ticks_add, sleep_ms
@@ -315,40 +315,46 @@ class Status:
         self._idle_seen = True
 
     # --- periodic work --------------------------------------------------------
+    # Small functions, few locals, links by index where a for loop's iterator (four
+    # words) would tip it: MicroPython takes a frame state of more than about 11 words
+    # from the heap on every call.
     def tick(self, now):
-        ep = self.ep
         if not self._initialised:
             self._initialised = True
             self._update()
-        if len(self._gcs_state) < len(ep.links):
+        if len(self._gcs_state) < len(self.ep.links):
             self._links_changed()
         if ticks_diff(now, self._next_period) >= 0:
-            self._next_period = ticks_add(self._next_period, _PERIOD_MS)
-            if ticks_diff(now, self._next_period) >= 0:  # fell behind: keep the rate, not the backlog
-                self._next_period = ticks_add(now, _PERIOD_MS)
-            self._measure()
-            streams = ep.services.get("streams")
-            for link in ep.links:
-                self.send_heartbeat(link)
-                if streams is None:
-                    self.send_sys_status(link)
+            self._period(now)
         self._check_gcs(now)
         if self._home_changed:
             self._home_changed = False
-            for link in ep.links:
+            for link in self.ep.links:
                 self.send_home_position(link)
         if self.texts.count and ticks_diff(now, self._next_text) >= 0:
             self._next_text = ticks_add(now, self._text_gap_ms)
-            for link in ep.links:
+            for link in self.ep.links:
                 self.texts.send(link)
             self.texts.pop()
         if self._reboot and ticks_diff(now, self._reboot_at) >= 0:
             action = self._reboot
             self._reboot = 0
             if action == 2:
-                ep.board.shutdown()
+                self.ep.board.shutdown()
                 raise SHUTDOWN
             raise REBOOT
+
+    def _period(self, now):
+        # Once a second: HEARTBEAT, and SYS_STATUS unless the streams service schedules it.
+        self._next_period = ticks_add(self._next_period, _PERIOD_MS)
+        if ticks_diff(now, self._next_period) >= 0:  # fell behind: keep the rate, not the backlog
+            self._next_period = ticks_add(now, _PERIOD_MS)
+        self._measure()
+        sys_status = "streams" not in self.ep.services
+        for link in self.ep.links:
+            self.send_heartbeat(link)
+            if sys_status:
+                self.send_sys_status(link)
 
     def _measure(self):
         # Once a second: loop load and link figures for SYS_STATUS.
@@ -360,33 +366,38 @@ class Status:
         self._win_us = t
         self._idle_us = 0
         self._idle_seen = False
+        self._link_figures()
+
+    def _link_figures(self):
         frames = lost = errors = 0
-        for link in self.ep.links:
-            rx = link.rx
+        i = 0
+        while i < len(self.ep.links):
+            rx = self.ep.links[i].rx
             frames += rx.frames
             lost += rx.lost
             errors += rx.crc_errors + rx.bad_frames
-        df = frames - self._frames
-        dl = lost - self._lost
+            i += 1
+        self._smooth(frames - self._frames, lost - self._lost)
         self._frames = frames
         self._lost = lost
+        self.errors_comm = errors if errors < 0xFFFF else 0xFFFF
+
+    def _smooth(self, df, dl):
         if df >= 0 and dl >= 0:  # negative after a stats reset: skip that window
             self._acc_frames += df - (self._acc_frames >> 3)
             self._acc_lost += dl - (self._acc_lost >> 3)
         total = self._acc_frames + self._acc_lost
         self.drop_rate_comm = self._acc_lost * 10000 // total if total else 0
-        self.errors_comm = errors if errors < 0xFFFF else 0xFFFF
 
     def _check_gcs(self, now):
-        timeout = self.gcs_timeout_ms
-        seen = self._gcs_seen
         state = self._gcs_state
-        for link in self.ep.links:
-            i = link.index
-            if state[i] == _GCS_PRESENT and ticks_diff(now, seen[i]) > timeout:
+        i = 0
+        while i < len(self.ep.links):  # a link's index is its place in ep.links
+            if state[i] == _GCS_PRESENT and ticks_diff(now, self._gcs_seen[i]) > self.gcs_timeout_ms:
                 state[i] = _GCS_LOST
                 if self.on_gcs_lost is not None:
-                    self.on_gcs_lost(link)
+                    self.on_gcs_lost(self.ep.links[i])
+            i += 1
         if self.operator is not None:
             self.operator.check(now)
 
@@ -435,18 +446,29 @@ class Status:
         on_change_operator_control(self.ep, link, p, self.operator)
 
     # --- producers: send(link) -> bool -----------------------------------------
+    # Packed a few fields at a time over a cleared payload: a struct.pack_into of a
+    # whole message puts more values on the stack than a frame state MicroPython
+    # keeps off the heap (about 11 words).
     def send_heartbeat(self, link):
         off = link.begin()
-        struct.pack_into("<IBBBBB", link.txbuf, off, self.custom_mode, self.mav_type, self.autopilot,
-                         self.base_mode, self.system_status, _MAVLINK_VERSION)
+        buf = link.txbuf
+        pack_into("<I", buf, off, self.custom_mode)
+        buf[off + 4] = self.mav_type
+        buf[off + 5] = self.autopilot
+        buf[off + 6] = self.base_mode
+        buf[off + 7] = self.system_status
+        buf[off + 8] = _MAVLINK_VERSION
         return link.send(_MSG_HEARTBEAT)
 
     def send_sys_status(self, link):
+        # _SYS_STATUS_FMT; errors_count2..4 stay 0.
         off = link.tx.clear(link.tx.crc_len[_MSG_SYS_STATUS] >> 16)
-        struct.pack_into(_SYS_STATUS_FMT, link.txbuf, off, self.sensors_present, self.sensors_enabled,
-                         self.sensors_health, self.load, self.voltage_mv, self.current_ca,
-                         self.drop_rate_comm, self.errors_comm, self.texts.dropped & 0xFFFF, 0, 0, 0,
-                         self.battery_remaining)
+        buf = link.txbuf
+        pack_into("<III", buf, off, self.sensors_present, self.sensors_enabled, self.sensors_health)
+        pack_into("<HHh", buf, off + 12, self.load, self.voltage_mv, self.current_ca)
+        pack_into("<HH", buf, off + 18, self.drop_rate_comm, self.errors_comm)
+        pack_into("<H", buf, off + 22, self.texts.dropped & 0xFFFF)  # errors_count1
+        pack_into("<b", buf, off + 30, self.battery_remaining)
         return link.send(_MSG_SYS_STATUS)
 
     def send_system_time(self, link):
@@ -457,17 +479,22 @@ class Status:
         return link.send(_MSG_SYSTEM_TIME)
 
     def send_autopilot_version(self, link):
+        # _AUTOPILOT_VERSION_FMT: capabilities, uid, flight_sw_version, middleware 0,
+        # os_sw_version; board_version, vendor_id, product_id and the hashes stay 0.
         off = link.tx.clear(link.tx.crc_len[_MSG_AUTOPILOT_VERSION] >> 16)
-        struct.pack_into(_AUTOPILOT_VERSION_FMT, link.txbuf, off, self.ep.capabilities, self.uid,
-                         self._sw_version, 0, self._os_version, 0, 0, 0)
+        buf = link.txbuf
+        pack_into("<QQI", buf, off, self.ep.capabilities, self.uid, self._sw_version)
+        pack_into("<I", buf, off + 24, self._os_version)
         return link.send(_MSG_AUTOPILOT_VERSION)
 
     def send_home_position(self, link):
+        # _HOME_POSITION_FMT: lat, lon, alt; x, y, z 0; q = (1, 0, 0, 0); the rest 0.
         if not self.home_set:
             return False
         off = link.tx.clear(link.tx.crc_len[_MSG_HOME_POSITION] >> 16)
-        struct.pack_into(_HOME_POSITION_FMT, link.txbuf, off, self.home_lat, self.home_lon, self.home_alt,
-                         0, 0, 0, self._one, 0, 0, 0)
+        buf = link.txbuf
+        pack_into("<iii", buf, off, self.home_lat, self.home_lon, self.home_alt)
+        pack_into("<f", buf, off + 24, self._one)
         return link.send(_MSG_HOME_POSITION)
 
 

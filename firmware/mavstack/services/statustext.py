@@ -40,14 +40,7 @@ class TextQueue:
             self.count -= 1
             self.dropped += 1
         i = (self.head + self.count) % slots
-        buf = self.texts[i]
-        n = len(text)
-        if n > _TEXT_LEN:
-            n = _TEXT_LEN
-        for j in range(n):
-            buf[j] = text[j]
-        for j in range(n, _TEXT_LEN):
-            buf[j] = 0
+        _fill(self.texts[i], text)
         self.severity[i] = severity & 7
         self.count += 1
 
@@ -71,3 +64,18 @@ class TextQueue:
         while n < _TEXT_LEN and buf[n]:
             n += 1
         return bytes(buf[:n]).decode()
+
+
+def _fill(buf, text):
+    """buf := text, cut to buf's length and NUL-padded (a helper of its own, with while
+    loops: MicroPython takes a frame state of more than about 11 words from the heap)."""
+    n = len(text)
+    if n > len(buf):
+        n = len(buf)
+    j = 0
+    while j < n:
+        buf[j] = text[j]
+        j += 1
+    while j < len(buf):
+        buf[j] = 0
+        j += 1

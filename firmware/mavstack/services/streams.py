@@ -39,7 +39,7 @@ same share of what it asked for), and that achieved interval is what
 MESSAGE_INTERVAL reports. A link that cannot take a frame (link.send False) is
 left until the next tick; the loop never waits.
 """
-import struct
+from struct import pack_into
 
 from ..link import TX_WRAP
 from ..compat import const, ticks_diff, ticks_add
@@ -83,12 +83,12 @@ def group(stream_id):
     """Message ids of a MAV_DATA_STREAM (0: all of them), or None if unknown."""
     if stream_id == 0:
         ids = []
-        for _, members in GROUPS:
-            ids.extend(members)
+        for g in GROUPS:
+            ids.extend(g[1])
         return ids
-    for sid, members in GROUPS:
-        if sid == stream_id:
-            return members
+    for g in GROUPS:
+        if g[0] == stream_id:
+            return g[1]
     return None
 
 
@@ -243,15 +243,17 @@ class Streams:
 
     # --- protocol handlers -----------------------------------------------------------
 
+    # The handlers keep their frames within the ~11 words MicroPython holds off the heap
+    # too (links by index, payloads a field or two at a time).
     def _on_set_interval(self, cmd):
-        msgid = cmd.int(1)
-        interval = cmd.int(2)
         if cmd.int(7) == 2:
             ok = True
-            for link in self.ep.links:
-                ok = self.set_interval(link, msgid, interval) and ok
+            i = 0
+            while i < len(self.ep.links):
+                ok = self.set_interval(self.ep.links[i], cmd.int(1), cmd.int(2)) and ok
+                i += 1
         else:
-            ok = self.set_interval(cmd.link, msgid, interval)
+            ok = self.set_interval(cmd.link, cmd.int(1), cmd.int(2))
         return _ACCEPTED if ok else _DENIED
 
     def _on_get_interval(self, cmd):
@@ -261,51 +263,70 @@ class Streams:
     def send_message_interval(self, link):
         """Producer of MESSAGE_INTERVAL, in answer to GET_MESSAGE_INTERVAL (param1: the
         message) or REQUEST_MESSAGE 244 (param2: the message)."""
+        msgid = self._asked()
+        if msgid is None:
+            return False
+        interval = self.interval(link, msgid)
+        off = link.begin()
+        pack_into("<i", link.txbuf, off, interval)  # MESSAGE_INTERVAL: interval_us, message_id
+        pack_into("<H", link.txbuf, off + 4, msgid & 0xFFFF)
+        return link.send(_MSG_MESSAGE_INTERVAL)
+
+    def _asked(self):
+        """The message id the command being answered asks about, or None."""
         commands = self.ep.services.get("commands")
         if commands is None:
-            return False
+            return None
         cmd = commands.cmd
         if cmd.command == _CMD_GET_MESSAGE_INTERVAL:
-            msgid = cmd.int(1)
-        elif cmd.command == _CMD_REQUEST_MESSAGE and cmd.int(1) == _MSG_MESSAGE_INTERVAL:
-            msgid = cmd.int(2)
-        else:
-            return False
-        off = link.begin()
-        struct.pack_into(self._interval_fmt, link.txbuf, off, self.interval(link, msgid), msgid & 0xFFFF)
-        return link.send(_MSG_MESSAGE_INTERVAL)
+            return cmd.int(1)
+        if cmd.command == _CMD_REQUEST_MESSAGE and cmd.int(1) == _MSG_MESSAGE_INTERVAL:
+            return cmd.int(2)
+        return None
 
     def _on_request_data_stream(self, link, p):
         # REQUEST_DATA_STREAM: req_message_rate, target_system, target_component, req_stream_id, start_stop
         if not self.ep.for_us(p[2], p[3]):
             return
-        rate = u16(p, 0)
-        stream_id = p[4]
-        on = 1 if p[5] and rate else 0
-        ids = group(stream_id)
-        if ids is not None:
-            for msgid in ids:
-                if msgid in self.ep.producers:
-                    self.set_interval(link, msgid, 1000000 // rate if on else -1)
-        else:
-            on = 0
+        rate = u16(p, 0) if p[5] else 0  # 0: stop
+        if not self._set_group(link, p[4], rate):
+            rate = 0
+        # DATA_STREAM: message_rate, stream_id, on_off
         off = link.begin()
-        struct.pack_into(self.ep.fmt(_MSG_DATA_STREAM), link.txbuf, off, rate if on else 0, stream_id, on)
+        pack_into("<H", link.txbuf, off, rate)
+        link.txbuf[off + 2] = p[4]
+        link.txbuf[off + 3] = 1 if rate else 0
         link.send(_MSG_DATA_STREAM)
 
+    def _set_group(self, link, stream_id, rate):
+        """The messages of a group this endpoint produces at rate Hz (0: off) -> False if
+        the group is unknown."""
+        ids = group(stream_id)
+        if ids is None:
+            return False
+        rate = 1000000 // rate if rate else -1  # the interval
+        i = 0
+        while i < len(ids):
+            if ids[i] in self.ep.producers:
+                self.set_interval(link, ids[i], rate)
+            i += 1
+        return True
+
     # --- the scheduler (every tick; allocation-free) -------------------------------
+    # In small functions with few locals: MicroPython takes a frame state of more than
+    # about 11 words (locals plus value stack; a for loop's iterator is four) from the
+    # heap on every call.
 
     def tick(self, now):
         if len(self.links) != len(self.ep.links):
             self._sync_links(now)
-        d = ticks_diff(now, self._rescale_at)
-        if d >= 0 or d < -_RESCALE_MS:  # due, or the clock jumped
+        if not -_RESCALE_MS <= ticks_diff(now, self._rescale_at) < 0:  # due, or the clock jumped
             self._rescale_at = ticks_add(now, _RESCALE_MS)
             for ls in self.links:
                 self._measure(ls, now)
                 self._fit(ls)
         for ls in self.links:
-            self._run(ls, now)
+            _run(ls, now)
 
     def _measure(self, ls, now):
         """Bytes per second the link sent outside the scheduler since the last look."""
@@ -324,78 +345,108 @@ class Streams:
         avail = bps - ls.priority_bps - bps // _MARGIN_DIV
         if avail < bps // _FLOOR_DIV:
             avail = bps // _FLOOR_DIV
-        producers = self.ep.producers
-        demand = 0
-        for s in ls.streams:
-            if s.send is None:
-                s.send = producers.get(s.msgid)
-            if s.interval_us > 0 and s.live and s.send is not None:
-                demand += s.cost * 1000000 // s.interval_us
+        demand = self._demand(ls)
         while demand >= _DEMAND_MAX:  # keep the ratio's numerator below 2^30 (see _stretch)
             demand >>= 1
             avail = (avail >> 1) or 1
-        for s in ls.streams:
+        i = 0
+        while i < len(ls.streams):
+            s = ls.streams[i]
             if s.interval_us > 0 and demand > avail:
                 s.achieved_us = _stretch(s.interval_us, demand, avail)
             else:
                 s.achieved_us = s.interval_us
             s.step_ms = s.achieved_us // 1000
+            i += 1
 
-    def _run(self, ls, now):
-        link = ls.link
-        bps = link.bytes_per_s
-        dt = ticks_diff(now, ls.last)
-        ls.last = now
-        credit = ls.credit
-        if dt > 0:
-            credit += bps * dt
-        tx = link.tx_bytes
-        credit -= ((tx - ls.last_tx) & TX_WRAP) * 1000  # everything sent since, priority traffic too
-        ls.last_tx = tx
-        cap = bps * _BURST_MS
-        if cap < _MIN_BURST * 1000:
-            cap = _MIN_BURST * 1000
-        if credit > cap:
-            credit = cap
-        ls.credit = credit
-        streams = ls.streams
-        n = len(streams)
-        if n == 0 or ls.credit <= 0:
+    def _demand(self, ls):
+        """Bytes per second the link's streams ask for (those with something to send)."""
+        demand = 0
+        for s in ls.streams:
+            if s.send is None:
+                s.send = self.ep.producers.get(s.msgid)
+            if s.interval_us > 0 and s.live and s.send is not None:
+                demand += s.cost * 1000000 // s.interval_us
+        return demand
+
+
+# The per-tick path as plain functions (no self: one local fewer, so the loop keeps its
+# streams and their count in locals and still fits).
+def _run(ls, now):
+    """Send what is due on one link, from ls.start on, while its credit lasts."""
+    if not _refill(ls, now):
+        return
+    streams = ls.streams
+    n = len(streams)
+    i = ls.start
+    ls.start = i + 1 if i + 1 < n else 0
+    k = n
+    while k:
+        k -= 1
+        s = streams[i]
+        i = i + 1 if i + 1 < n else 0
+        if s.achieved_us <= 0 or s.send is None:
+            continue
+        late = ticks_diff(now, s.due)
+        if late < 0:
+            if late < -2 * s.step_ms - 2:  # the clock jumped back: start again
+                s.due = now
+            continue
+        if not _send(ls, s) or ls.credit <= 0:
             return
-        i = ls.start
-        ls.start = i + 1 if i + 1 < n else 0
-        for _ in range(n):
-            s = streams[i]
-            i = i + 1 if i + 1 < n else 0
-            if s.achieved_us <= 0 or s.send is None:
-                continue
-            late = ticks_diff(now, s.due)
-            if late < 0:
-                if late < -2 * s.step_ms - 2:  # the clock jumped back: start again
-                    s.due = now
-                continue
-            before = link.tx_bytes
-            dropped = link.tx_dropped
-            if s.send(link):
-                sent = (link.tx_bytes - before) & TX_WRAP
-                s.cost = sent
-                s.sent += 1
-                s.live = True
-                ls.credit -= sent * 1000
-                ls.last_tx = link.tx_bytes
-                ls.win_stream += sent
-            elif link.tx_dropped != dropped:
-                return  # the link cannot take more now: the stream stays due
-            else:
-                s.live = False  # nothing written yet (or not sendable on this link)
-            f = s.frac + s.achieved_us
-            step = f // 1000
-            s.frac = f - step * 1000
-            s.due = ticks_add(s.due, step)
-            if ticks_diff(now, s.due) >= step:
-                s.due = now  # a whole interval behind: let the missed ones go
-            if ls.credit <= 0:
-                return
+
+
+def _refill(ls, now):
+    """The link's credit, topped up for the time since the last tick and drained by
+    everything it sent since -> whether a stream may go now."""
+    link = ls.link
+    dt = ticks_diff(now, ls.last)
+    ls.last = now
+    credit = ls.credit
+    if dt > 0:
+        credit += link.bytes_per_s * dt
+    credit -= ((link.tx_bytes - ls.last_tx) & TX_WRAP) * 1000  # priority traffic too
+    ls.last_tx = link.tx_bytes
+    cap = link.bytes_per_s * _BURST_MS
+    if cap < _MIN_BURST * 1000:
+        cap = _MIN_BURST * 1000
+    ls.credit = credit if credit < cap else cap
+    return len(ls.streams) != 0 and ls.credit > 0
+
+
+def _send(ls, s):
+    """Send a due stream -> False when the link cannot take more now (it stays due)."""
+    link = ls.link
+    before = link.tx_bytes
+    dropped = link.tx_dropped
+    if s.send(link):
+        _sent(ls, s, before)
+    elif link.tx_dropped != dropped:
+        return False
+    else:
+        s.live = False  # nothing written yet (or not sendable on this link)
+    _next_due(s, ls.last)  # (ls.last: this tick's now)
+    return True
+
+
+def _sent(ls, s, before):
+    sent = (ls.link.tx_bytes - before) & TX_WRAP
+    s.cost = sent
+    s.sent += 1
+    s.live = True
+    ls.credit -= sent * 1000
+    ls.last_tx = ls.link.tx_bytes
+    ls.win_stream += sent
+
+
+def _next_due(s, now):
+    # The deadline moves on by the interval (remainder carried), not from now.
+    f = s.frac + s.achieved_us
+    step = f // 1000
+    s.frac = f - step * 1000
+    s.due = ticks_add(s.due, step)
+    if ticks_diff(now, s.due) >= step:
+        s.due = now  # a whole interval behind: let the missed ones go
 
 
 def create(ep):
