@@ -94,28 +94,36 @@ class UdpTransport:
             return n
         return 0
 
+    # readinto and write run on every poll: the try is in small helpers of few locals,
+    # since MicroPython takes a frame state of more than about 11 words (locals, value
+    # stack, three for a try) from the heap on every call.
     def readinto(self, buf):
         n = 0
         if self.sock is not None:
-            try:
-                n = self.sock.readinto(buf) if MICROPYTHON else self.sock.recv_into(buf)
-            except OSError:  # nothing waiting, or the peer's port is closed
-                n = 0
-            if n is None:
-                n = 0
-            elif n == len(buf) and MICROPYTHON:
+            n = self._read(buf)
+            if n == len(buf) and MICROPYTHON:
                 self.rx_overruns += 1
         if not n and self._listen is not None:
             n = self._newcomer(buf)
         return n
+
+    def _read(self, buf):
+        try:
+            return (self.sock.readinto(buf) if MICROPYTHON else self.sock.recv_into(buf)) or 0
+        except OSError:  # nothing waiting, or the peer's port is closed
+            return 0
 
     if MICROPYTHON:
 
         def write(self, buf, n):
             if self.sock is None:
                 return 0
+            self._n = n
+            return self._send(buf)
+
+        def _send(self, buf):
             try:
-                return self.sock.write(buf, n) or 0
+                return self.sock.write(buf, self._n) or 0
             except OSError:
                 return 0
 

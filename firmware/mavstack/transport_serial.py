@@ -50,6 +50,8 @@ class SerialTransport:
 
     if MICROPYTHON:
 
+        # Small functions, few locals: MicroPython takes a frame state of more than about
+        # 11 words (locals, value stack, three for a try) from the heap on every call.
         def readinto(self, buf):
             try:
                 return self._f.readinto(buf) or 0
@@ -57,13 +59,22 @@ class SerialTransport:
                 return 0
 
         def write(self, buf, n):
+            if not self._writable():
+                return 0
+            self._n = n
+            return self._write(buf)
+
+        def _writable(self):
             for _obj, ev in self._poll.ipoll(0):
                 if ev & self._POLLOUT:
-                    try:
-                        return self._f.write(buf, n) or 0
-                    except OSError:
-                        return 0
-            return 0
+                    return True
+            return False
+
+        def _write(self, buf):
+            try:
+                return self._f.write(buf, self._n) or 0
+            except OSError:
+                return 0
 
     else:
 
