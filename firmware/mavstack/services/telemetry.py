@@ -18,8 +18,17 @@ The dialect gives each payload's layout. Fields MAVLink 2 appended (extensions)
 are packed only where the dialect has them; BATTERY_STATUS differs altogether
 between the seed (six cells, 16 bytes) and today's common set, and battery()
 fills whichever the dialect defines.
+
+Heap: MicroPython takes a function's frame state from the heap, on every call, when
+its locals (the arguments among them) and value stack pass about 11 words. The
+setters therefore pack a few fields at a time; those with six to eight parameters
+first put their values in self._v1.. and a packer of no arguments packs them. Setters
+of nine or more parameters (scaled_imu, raw_imu, optical_flow, battery, highres_imu,
+gps_raw) have more locals than that by their signature alone: each call takes its
+frame from the heap (a few dozen bytes), their helpers none.
 """
 import struct
+from struct import pack_into
 
 from ..compat import const
 
@@ -198,31 +207,69 @@ class Telemetry:
 
     def attitude(self, roll, pitch, yaw, rollspeed, pitchspeed, yawspeed):
         """ATTITUDE: rad, rad/s."""
-        s = self._attitude
-        struct.pack_into(s.base, s.buf, 0, 0, roll, pitch, yaw, rollspeed, pitchspeed, yawspeed)
-        self.clock.stamp_ms(s.buf, 0)
-        s.written = True
+        self._v1 = roll
+        self._v2 = pitch
+        self._v3 = yaw
+        self._v4 = rollspeed
+        self._v5 = pitchspeed
+        self._v6 = yawspeed
+        self._six_floats(self._attitude)
 
     def attitude_quaternion(self, q1, q2, q3, q4, rollspeed, pitchspeed, yawspeed):
         """ATTITUDE_QUATERNION: w, x, y, z; rad/s."""
-        s = self._quaternion
-        struct.pack_into(s.base, s.buf, 0, 0, q1, q2, q3, q4, rollspeed, pitchspeed, yawspeed)
-        self.clock.stamp_ms(s.buf, 0)
-        s.written = True
+        self._v1 = q1
+        self._v2 = q2
+        self._v3 = q3
+        self._v4 = q4
+        self._v5 = rollspeed
+        self._v6 = pitchspeed
+        self._v7 = yawspeed
+        self._put_quaternion()
 
     def global_position(self, lat, lon, alt, relative_alt, vx, vy, vz, hdg):
         """GLOBAL_POSITION_INT: degE7, degE7, mm (MSL), mm (above home), cm/s NED, cdeg (65535 unknown)."""
-        s = self._global
-        struct.pack_into(s.base, s.buf, 0, 0, lat, lon, alt, relative_alt, vx, vy, vz, hdg)
-        self.clock.stamp_ms(s.buf, 0)
-        s.written = True
+        self._v1 = lat
+        self._v2 = lon
+        self._v3 = alt
+        self._v4 = relative_alt
+        self._v5 = vx
+        self._v6 = vy
+        self._v7 = vz
+        self._v8 = hdg
+        self._put_global()
 
     def local_position(self, x, y, z, vx, vy, vz):
         """LOCAL_POSITION_NED: m, m/s."""
-        s = self._local
-        struct.pack_into(s.base, s.buf, 0, 0, x, y, z, vx, vy, vz)
-        self.clock.stamp_ms(s.buf, 0)
+        self._v1 = x
+        self._v2 = y
+        self._v3 = z
+        self._v4 = vx
+        self._v5 = vy
+        self._v6 = vz
+        self._six_floats(self._local)
+
+    # Packers of the staged values (self._v1..), a few fields a call.
+    def _six_floats(self, s):
+        # ATTITUDE, LOCAL_POSITION_NED: time_boot_ms and six floats.
+        b = s.buf
+        pack_into("<fff", b, 4, self._v1, self._v2, self._v3)
+        pack_into("<fff", b, 16, self._v4, self._v5, self._v6)
+        self.clock.stamp_ms(b, 0)
         s.written = True
+
+    def _put_quaternion(self):
+        b = self._quaternion.buf
+        pack_into("<ffff", b, 4, self._v1, self._v2, self._v3, self._v4)
+        pack_into("<fff", b, 20, self._v5, self._v6, self._v7)
+        self.clock.stamp_ms(b, 0)
+        self._quaternion.written = True
+
+    def _put_global(self):
+        b = self._global.buf
+        pack_into("<iiii", b, 4, self._v1, self._v2, self._v3, self._v4)
+        pack_into("<hhhH", b, 20, self._v5, self._v6, self._v7, self._v8)
+        self.clock.stamp_ms(b, 0)
+        self._global.written = True
 
     def gps_raw(self, fix_type, lat, lon, alt, eph, epv, vel, cog, satellites_visible,
                 alt_ellipsoid=0, h_acc=0, v_acc=0, vel_acc=0, hdg_acc=0, yaw=0):
@@ -239,20 +286,13 @@ class Telemetry:
     def gps_status(self, satellites_visible, prn, used, elevation, azimuth, snr):
         """GPS_STATUS: the count and up to 20 satellites' prn, used, elevation (deg),
         azimuth (deg * 256 / 360) and snr (dB), each a sequence of small ints."""
-        s = self._gps_status
-        b = s.buf
-        b[0] = satellites_visible
-        self._bytes(b, 1, prn)
-        self._bytes(b, 21, used)
-        self._bytes(b, 41, elevation)
-        self._bytes(b, 61, azimuth)
-        self._bytes(b, 81, snr)
-        s.written = True
-
-    def _bytes(self, b, off, values):
-        n = len(values)
-        for i in range(20):
-            b[off + i] = values[i] & 0xFF if i < n else 0
+        self._gps_status.buf[0] = satellites_visible
+        _bytes20(self._gps_status.buf, 1, prn)
+        _bytes20(self._gps_status.buf, 21, used)
+        _bytes20(self._gps_status.buf, 41, elevation)
+        _bytes20(self._gps_status.buf, 61, azimuth)
+        _bytes20(self._gps_status.buf, 81, snr)
+        self._gps_status.written = True
 
     def scaled_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag):
         """SCALED_IMU: mG, mrad/s, mgauss."""
@@ -271,17 +311,16 @@ class Telemetry:
 
     def raw_pressure(self, press_abs, press_diff1, press_diff2, temperature):
         """RAW_PRESSURE: raw counts."""
-        s = self._raw_pressure
-        struct.pack_into(s.base, s.buf, 0, 0, press_abs, press_diff1, press_diff2, temperature)
-        self.clock.stamp_us(s.buf, 0)
-        s.written = True
+        pack_into("<hh", self._raw_pressure.buf, 8, press_abs, press_diff1)
+        pack_into("<hh", self._raw_pressure.buf, 12, press_diff2, temperature)
+        self.clock.stamp_us(self._raw_pressure.buf, 0)
+        self._raw_pressure.written = True
 
     def scaled_pressure(self, press_abs, press_diff, temperature):
         """SCALED_PRESSURE: hPa, hPa, cdegC."""
-        s = self._scaled_pressure
-        struct.pack_into(s.base, s.buf, 0, 0, press_abs, press_diff, temperature)
-        self.clock.stamp_ms(s.buf, 0)
-        s.written = True
+        pack_into("<ffh", self._scaled_pressure.buf, 4, press_abs, press_diff, temperature)
+        self.clock.stamp_ms(self._scaled_pressure.buf, 0)
+        self._scaled_pressure.written = True
 
     def highres_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag,
                     abs_pressure, diff_pressure, pressure_alt, temperature, fields_updated):
@@ -296,61 +335,70 @@ class Telemetry:
         """RC inputs, a sequence of up to 18 pulse widths (us): fills RC_CHANNELS_RAW
         (the first 8), RC_CHANNELS_SCALED (1000..2000 us as -10000..10000) and, where
         the dialect has it, RC_CHANNELS with all of them. rssi 0..254, 255 unknown."""
-        n = len(chans)
-        raw = self._rc_raw
-        scaled = self._rc_scaled
-        self.clock.stamp_ms(raw.buf, 0)
-        self.clock.stamp_ms(scaled.buf, 0)
-        for i in range(8):
-            if i < n:
-                v = chans[i]
-                sv = (v - 1500) * 20
-                sv = -10000 if sv < -10000 else (10000 if sv > 10000 else sv)
-            else:
-                v = _UNUSED_U16
-                sv = _UNUSED_I16
-            struct.pack_into("<H", raw.buf, 4 + 2 * i, v)
-            struct.pack_into("<h", scaled.buf, 4 + 2 * i, sv)
-        raw.buf[21] = rssi
-        scaled.buf[21] = rssi
-        raw.written = scaled.written = True
-        rc = self._rc
-        if rc is not None:
-            self.clock.stamp_ms(rc.buf, 0)
-            for i in range(18):
-                struct.pack_into("<H", rc.buf, 4 + 2 * i, chans[i] if i < n else _UNUSED_U16)
-            rc.buf[40] = n if n < 18 else 18
-            rc.buf[41] = rssi
-            rc.written = True
+        self.clock.stamp_ms(self._rc_raw.buf, 0)
+        self.clock.stamp_ms(self._rc_scaled.buf, 0)
+        _rc8(self._rc_raw.buf, self._rc_scaled.buf, chans)
+        self._rc_raw.buf[21] = rssi
+        self._rc_scaled.buf[21] = rssi
+        self._rc_raw.written = self._rc_scaled.written = True
+        if self._rc is not None:
+            self.clock.stamp_ms(self._rc.buf, 0)
+            off = _put_u16s(self._rc.buf, 4, 40, chans, 0)
+            _fill_u16(self._rc.buf, off, 40, _UNUSED_U16)
+            self._rc.buf[40] = (off - 4) >> 1  # chancount
+            self._rc.buf[41] = rssi
+            self._rc.written = True
 
     def servo_output(self, outputs, port=0):
         """SERVO_OUTPUT_RAW: a sequence of up to 8 (16 where the dialect has the
         extension) output pulse widths (us); missing ones are sent as 0."""
-        s = self._servo
-        b = s.buf
-        n = len(outputs)
+        b = self._servo.buf
         self.clock.stamp_us32(b, 0)
-        for i in range(8):
-            struct.pack_into("<H", b, 4 + 2 * i, outputs[i] if i < n else 0)
+        off = _put_u16s(b, 4, 20, outputs, 0)
+        _fill_u16(b, off, 20, 0)
         b[20] = port
-        if s.ext is not None:
-            for i in range(8):
-                struct.pack_into("<H", b, 21 + 2 * i, outputs[8 + i] if 8 + i < n else 0)
-        s.written = True
+        if self._servo.ext is not None:
+            off = _put_u16s(b, 21, 37, outputs, 8)
+            _fill_u16(b, off, 37, 0)
+        self._servo.written = True
 
     def nav_controller(self, nav_roll, nav_pitch, nav_bearing, target_bearing, wp_dist,
                        alt_error, aspd_error, xtrack_error):
         """NAV_CONTROLLER_OUTPUT: deg, deg, deg, deg, m, m, m/s, m."""
-        s = self._nav
-        struct.pack_into(s.base, s.buf, 0, nav_roll, nav_pitch, alt_error, aspd_error, xtrack_error,
-                         nav_bearing, target_bearing, wp_dist)
-        s.written = True
+        self._v1 = nav_roll
+        self._v2 = nav_pitch
+        self._v3 = nav_bearing
+        self._v4 = target_bearing
+        self._v5 = wp_dist
+        self._v6 = alt_error
+        self._v7 = aspd_error
+        self._v8 = xtrack_error
+        self._put_nav()
+
+    def _put_nav(self):
+        # nav_roll, nav_pitch, alt_error, aspd_error, xtrack_error, nav_bearing, target_bearing, wp_dist
+        b = self._nav.buf
+        pack_into("<ff", b, 0, self._v1, self._v2)
+        pack_into("<fff", b, 8, self._v6, self._v7, self._v8)
+        pack_into("<hhH", b, 20, self._v3, self._v4, self._v5)
+        self._nav.written = True
 
     def vfr_hud(self, airspeed, groundspeed, heading, throttle, alt, climb):
         """VFR_HUD: m/s, m/s, deg (0..360), % (0..100), m (MSL), m/s."""
-        s = self._hud
-        struct.pack_into(s.base, s.buf, 0, airspeed, groundspeed, alt, climb, heading, throttle)
-        s.written = True
+        self._v1 = airspeed
+        self._v2 = groundspeed
+        self._v3 = heading
+        self._v4 = throttle
+        self._v5 = alt
+        self._v6 = climb
+        self._put_hud()
+
+    def _put_hud(self):
+        # airspeed, groundspeed, alt, climb, heading, throttle
+        b = self._hud.buf
+        pack_into("<ffff", b, 0, self._v1, self._v2, self._v5, self._v6)
+        pack_into("<hH", b, 16, self._v3, self._v4)
+        self._hud.written = True
 
     def optical_flow(self, sensor_id, flow_x, flow_y, flow_comp_m_x, flow_comp_m_y, quality,
                      ground_distance, flow_rate_x=0.0, flow_rate_y=0.0):
@@ -384,30 +432,17 @@ class Telemetry:
         b = s.buf
         if self._seed_battery:
             # voltage_cell_1..6, current_battery, accu_id, battery_remaining
-            self._cells(b, 0, 6, voltage_mv, cells)
+            _cells(b, 0, 12, voltage_mv, cells)
             struct.pack_into("<hBb", b, 12, current_ca, battery_id, remaining)
         else:
             struct.pack_into("<iih", b, 0, consumed_mah, energy_hj, temperature)
-            self._cells(b, 10, 10, voltage_mv, cells)
+            _cells(b, 10, 30, voltage_mv, cells)
             # current_battery, id, battery_function and type (unknown), battery_remaining
             struct.pack_into("<hBBBb", b, 30, current_ca, battery_id, 0, 0, remaining)
             if s.ext is not None:
                 struct.pack_into("<iB", b, 36, time_remaining, charge_state)
-                n = len(cells) if cells is not None else 0
-                for i in range(4):
-                    v = cells[10 + i] if 10 + i < n else 0
-                    struct.pack_into("<H", b, 41 + 2 * i, v)
+                _ext_cells(b, cells)
         s.written = True
-
-    def _cells(self, b, off, count, total_mv, cells):
-        # Unknown cells are UINT16_MAX; without cell voltages the total goes in cell 1.
-        n = len(cells) if cells is not None else 0
-        for i in range(count):
-            if n:
-                v = cells[i] if i < n else _UNUSED_U16
-            else:
-                v = (total_mv if total_mv < _UNUSED_U16 else _UNUSED_U16 - 1) if i == 0 else _UNUSED_U16
-            struct.pack_into("<H", b, off + 2 * i, v)
 
     def extended_sys_state(self, vtol_state, landed_state):
         """EXTENDED_SYS_STATE: MAV_VTOL_STATE, MAV_LANDED_STATE (today's dialect only)."""
@@ -420,30 +455,89 @@ class Telemetry:
 
     def named_value_float(self, name, value):
         """NAMED_VALUE_FLOAT: name as bytes, up to 10 (each name is sent in turn)."""
-        s = self._named_float
-        buf = s.find(name)
-        struct.pack_into(s.base, buf, 0, 0, value, name)
+        buf = self._named_float.find(name)
+        pack_into("<f10s", buf, 4, value, name)
         self.clock.stamp_ms(buf, 0)
-        s.written = True
+        self._named_float.written = True
 
     def named_value_int(self, name, value):
         """NAMED_VALUE_INT: name as bytes, up to 10; int32 value."""
-        s = self._named_int
-        buf = s.find(name)
-        struct.pack_into(s.base, buf, 0, 0, value, name)
+        buf = self._named_int.find(name)
+        pack_into("<i10s", buf, 4, value, name)
         self.clock.stamp_ms(buf, 0)
-        s.written = True
+        self._named_int.written = True
 
     def debug(self, ind, value):
         """DEBUG: index, float value."""
-        s = self._debug
-        struct.pack_into(s.base, s.buf, 0, 0, value, ind)
-        self.clock.stamp_ms(s.buf, 0)
-        s.written = True
+        pack_into("<fB", self._debug.buf, 4, value, ind)
+        self.clock.stamp_ms(self._debug.buf, 0)
+        self._debug.written = True
 
     def debug_vect(self, name, x, y, z):
         """DEBUG_VECT: name as bytes, up to 10; three floats."""
-        s = self._debug_vect
-        struct.pack_into(s.base, s.buf, 0, 0, x, y, z, name)
-        self.clock.stamp_us(s.buf, 0)
-        s.written = True
+        pack_into("<ff", self._debug_vect.buf, 8, x, y)
+        pack_into("<f10s", self._debug_vect.buf, 16, z, name)
+        self.clock.stamp_us(self._debug_vect.buf, 0)
+        self._debug_vect.written = True
+
+
+# Helpers of few locals (see the module's note on frames).
+def _bytes20(b, off, values):
+    """20 bytes from off: values' (their low bytes), 0 past their end."""
+    i = 0
+    while i < 20:
+        b[off + i] = values[i] & 0xFF if i < len(values) else 0
+        i += 1
+
+
+def _put_u16s(b, off, end, values, k):
+    """values[k], values[k + 1], ... as uint16 from off, up to end or values' end ->
+    the offset after them."""
+    while off < end and k < len(values):
+        pack_into("<H", b, off, values[k])
+        off += 2
+        k += 1
+    return off
+
+
+def _fill_u16(b, off, end, v):
+    """uint16 v from off up to end."""
+    while off < end:
+        pack_into("<H", b, off, v)
+        off += 2
+
+
+def _rc8(raw, scaled, chans):
+    """The first 8 channels into RC_CHANNELS_RAW (us) and _SCALED (1000..2000 us as
+    -10000..10000); those not given are UINT16_MAX and INT16_MAX."""
+    o = 4
+    while o < 20:
+        k = (o - 4) >> 1
+        if k < len(chans):
+            v = chans[k]
+            pack_into("<H", raw, o, v)
+            v = (v - 1500) * 20
+            if v < -10000:
+                v = -10000
+            elif v > 10000:
+                v = 10000
+            pack_into("<h", scaled, o, v)
+        else:
+            pack_into("<H", raw, o, _UNUSED_U16)
+            pack_into("<h", scaled, o, _UNUSED_I16)
+        o += 2
+
+
+def _cells(b, off, end, total_mv, cells):
+    # Unknown cells are UINT16_MAX; without cell voltages the total goes in cell 1.
+    if cells:
+        off = _put_u16s(b, off, end, cells, 0)
+    else:
+        pack_into("<H", b, off, total_mv if total_mv < _UNUSED_U16 else _UNUSED_U16 - 1)
+        off += 2
+    _fill_u16(b, off, end, _UNUSED_U16)
+
+
+def _ext_cells(b, cells):
+    # BATTERY_STATUS's voltages_ext: cells 11..14, 0 for those not given.
+    _fill_u16(b, _put_u16s(b, 41, 49, cells, 10) if cells else 41, 49, 0)
