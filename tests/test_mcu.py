@@ -118,9 +118,10 @@ def test_wire_parse_and_encode_locked_over_the_uart(board):
 # --- the steady-state scripts the unix port runs, on both CPUs ---------------------------
 
 # script, arguments: each prints a last line starting with "ok" when its checks and its
-# run under heap_lock() pass. "requested=N" there is what the whole steady state asked of
-# the heap unlocked (mem_total: frame states of the shared paths' larger functions); the
-# services' own paths are held to 0 ("own=0").
+# run under heap_lock() pass, and "requested=N": what the whole steady state asked of the
+# heap unlocked (mem_total: it sees the frame states the VM takes from the heap for
+# functions with many locals, which under heap_lock fall back to the C stack). Both are
+# held to 0, as are the services' own paths ("own=0").
 STEADY = (
     ("params_steady.py", ["bytewise", 2, 5760]),
     ("params_steady.py", ["c_cast", 1, 5760]),
@@ -138,4 +139,5 @@ def test_steady_state_scripts_heap_locked(board, script, args):
     lines = out.strip().splitlines()
     assert lines and lines[-1].lower().startswith("ok"), out
     assert "own=" not in lines[-1] or "own=0 " in lines[-1], out
+    assert " requested=0 " in lines[-1] + " ", out
     print("%s %s: %s" % (board.board, script, lines[-1]))

@@ -330,13 +330,12 @@ class Params(ParamTable):
     # locked (the emulated boards run so), a MemoryError there gets a plainer text made
     # in self._text instead, so the vehicle carries on and the refusal is still answered.
     def _unknown(self, p, o):
+        # Made in the text buffer (and in small frames: past about 11 words of locals
+        # and stack MicroPython takes a frame from the heap), so a ground station asking
+        # for names this vehicle lacks costs it no heap.
         text = self._text
-        n = len(_UNKNOWN)
-        _move(text, 0, _UNKNOWN, 0, n)
-        for k in range(cstr_len(p, o, ID_LEN)):
-            c = p[o + k]
-            text[n + k] = c if 0x20 < c < 0x7F else 0x3F  # '?' for what cannot be shown
-        zero(text, n + cstr_len(p, o, ID_LEN), _TEXT_LEN)
+        _move(text, 0, _UNKNOWN, 0, len(_UNKNOWN))
+        zero(text, _shown(text, len(_UNKNOWN), p, o), _TEXT_LEN)
         self.ep.statustext(_SEVERITY_WARNING, text)
 
     def _index_unknown(self, i):
@@ -492,6 +491,18 @@ class Params(ParamTable):
             self.ep.statustext(sev, "params: %s, using defaults" % why)
         else:
             self._say(_SEVERITY_WARNING, "params not reloaded: %s", why, b"params not reloaded")
+
+
+def _shown(dst, d, p, o):
+    """The NUL-padded name at p[o] into dst from d, '?' for what cannot be shown -> the
+    end of it in dst."""
+    n = cstr_len(p, o, ID_LEN)
+    k = 0
+    while k < n:
+        c = p[o + k]
+        dst[d + k] = c if 0x20 < c < 0x7F else 0x3F
+        k += 1
+    return d + n
 
 
 def _type_why(got, want):
