@@ -49,6 +49,7 @@ class UdpTransport:
         self.peer = None
         self.sock = None
         self.rx_overruns = 0
+        self._n = 0  # write's count for _send (made here: the heap may be locked later)
         self._listen = None
         addr = _sockaddr(socket, host, port)
         if mode == "udpin":

@@ -47,6 +47,7 @@ class SerialTransport:
         self._poll = select.poll()
         self._poll.register(self._f if MICROPYTHON else fd, select.POLLOUT)
         self._POLLOUT = select.POLLOUT
+        self._n = 0  # write's count for _write (made here: the heap may be locked later)
 
     if MICROPYTHON:
 

@@ -189,6 +189,9 @@ class Telemetry:
         self.voltage_mv = 0xFFFF
         self.current_ca = -1
         self.remaining = -1
+        # The staged values of the setters of six to eight parameters (see _six_floats):
+        # made here, so that storing them later adds no attribute (the heap may be locked).
+        self._v1 = self._v2 = self._v3 = self._v4 = self._v5 = self._v6 = self._v7 = self._v8 = 0
 
     # As ints, for applications and tests (heap objects past 2^30 on a 32-bit board).
     @property
