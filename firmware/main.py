@@ -133,10 +133,14 @@ def main(argv):
         try:
             run(ep, app)
         except Reboot:
-            # A board resets in board.reset(); the unix vehicle restarts in place.
+            # A board resets in board.reset(); the unix vehicle (and a board without
+            # reset()) restarts in place, after letting the old vehicle go: a small heap
+            # holds one vehicle, not two.
             ep.close()
             if hasattr(board, "reset"):
                 board.reset()
+            ep = app = None
+            gc.collect()
             continue
         except (KeyboardInterrupt, Shutdown):
             pass

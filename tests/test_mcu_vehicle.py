@@ -154,3 +154,22 @@ def test_uptime_past_2_30_ms_heap_locked(vehicle):
     assert recv(gcs, "COMMAND_ACK", 5.0, lambda m: m.command == 512).result == MAV_RESULT_ACCEPTED
     assert recv(gcs, "HEARTBEAT", 3.0, lambda h: h.get_srcSystem() == 1) is not None
     assert "MemoryError" not in vehicle.console()
+
+
+def test_reboot_in_place_keeps_saved_parameters(vehicle):
+    """PREFLIGHT_REBOOT_SHUTDOWN 1: the board restarts the vehicle in place (one vehicle
+    in the heap at a time), its UART is read by the new one only, and what was saved to
+    the RAM storage is there after the restart."""
+    gcs = vehicle.start_vehicle()
+    assert _set(gcs, "SIM_SPEED", 8.5, 9).param_value == 8.5
+    assert run(gcs, 245, 1.0) == MAV_RESULT_ACCEPTED
+    assert run(gcs, 246, 1.0) == MAV_RESULT_ACCEPTED
+    time.sleep(2)
+    assert recv(gcs, "HEARTBEAT", 5.0, lambda h: h.get_srcSystem() == 1) is not None
+    got = None
+    for _ in range(3):
+        got = _read(gcs, "SIM_SPEED")
+        if got is not None:
+            break
+    assert got is not None and got.param_value == 8.5
+    assert "MemoryError" not in vehicle.console()

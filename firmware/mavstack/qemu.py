@@ -217,4 +217,6 @@ class UartTransport:
         return n
 
     def close(self):
-        pass
+        # A vehicle restarted in place opens the UART again: this one stops draining it.
+        if self in _uarts:
+            _uarts.remove(self)
