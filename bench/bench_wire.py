@@ -135,16 +135,22 @@ def micropython(v1_path, v2_path, portable):
     return got
 
 
-def run():
+def write_streams(tmp):
+    """The v1 and v2 streams of FRAMES frames as files in tmp -> (v1, v2, v1_path, v2_path)."""
     os.environ.setdefault("MAVLINK20", "1")
     v1 = pack_stream(1, FRAMES)
     v2 = pack_stream(2, FRAMES)
+    v1_path, v2_path = os.path.join(tmp, "v1.bin"), os.path.join(tmp, "v2.bin")
+    with open(v1_path, "wb") as f:
+        f.write(v1)
+    with open(v2_path, "wb") as f:
+        f.write(v2)
+    return v1, v2, v1_path, v2_path
+
+
+def run():
     with tempfile.TemporaryDirectory() as tmp:
-        v1_path, v2_path = os.path.join(tmp, "v1.bin"), os.path.join(tmp, "v2.bin")
-        with open(v1_path, "wb") as f:
-            f.write(v1)
-        with open(v2_path, "wb") as f:
-            f.write(v2)
+        v1, v2, v1_path, v2_path = write_streams(tmp)
         viper = micropython(v1_path, v2_path, False)
         portable = micropython(v1_path, v2_path, True)
     alloc = max(v for k, v in list(viper.items()) + list(portable.items()) if k.endswith("alloc_per_frame"))

@@ -75,16 +75,9 @@ def c_fps(exe, path, frames):
 
 
 def run():
-    os.environ.setdefault("MAVLINK20", "1")
     frames = bench_wire.FRAMES
-    v1 = bench_wire.pack_stream(1, frames)
-    v2 = bench_wire.pack_stream(2, frames)
     with tempfile.TemporaryDirectory() as tmp:
-        v1_path, v2_path = os.path.join(tmp, "v1.bin"), os.path.join(tmp, "v2.bin")
-        with open(v1_path, "wb") as f:
-            f.write(v1)
-        with open(v2_path, "wb") as f:
-            f.write(v2)
+        _v1, _v2, v1_path, v2_path = bench_wire.write_streams(tmp)
         exe = build(tmp)
         c = c_fps(exe, v2_path, frames)
         ours = bench_wire.micropython(v1_path, v2_path, False)["ingest_v2_fps"]

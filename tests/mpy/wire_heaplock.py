@@ -132,13 +132,16 @@ def encode_all(e):
 
 
 def keep(e, buf, n):
-    out = e.out
-    pos = e.pos
+    e.pos = append(e.out, e.pos, buf, n)
+
+
+def append(out, pos, buf, n):
+    """out[pos:pos+n] = buf[0:n] (no slice objects) -> pos + n."""
     j = 0
     while j < n:
         out[pos + j] = buf[j]
         j += 1
-    e.pos = pos + n
+    return pos + n
 
 
 # --- a Link and an Endpoint ------------------------------------------------------------
@@ -165,13 +168,7 @@ class MemoryTransport:
         return n
 
     def write(self, buf, n):
-        out = self.out
-        w = self.written
-        j = 0
-        while j < n:
-            out[w + j] = buf[j]
-            j += 1
-        self.written = w + n
+        self.written = append(self.out, self.written, buf, n)
         return n
 
     def close(self):
