@@ -195,6 +195,50 @@ def test_reboot_acks_first_then_comes_back_with_params(vehicle):
     assert p is not None and p.param_value == 7.5
 
 
+def _set(m, name, value):
+    m.mav.param_set_send(1, 1, name.encode(), value, 9)  # MAV_PARAM_TYPE_REAL32
+    p = listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == name and p.param_value == value)
+    assert p is not None, (name, value)
+    return p
+
+
+def test_command_sent_again_after_its_ack_runs_again(vehicle):
+    """A command repeated after its ACK (confirmation 0) is a new command: it runs again,
+    whatever ran in between. Saved parameters on disk are the last ones acknowledged."""
+    v = start(vehicle, "--set", "param_autosave_ms=0")  # saved only by PREFLIGHT_STORAGE
+    m = v.gcs()
+    _set(m, "SIM_SPEED", 6.0)
+    assert run(m, 245, 1) == MAV_RESULT_ACCEPTED
+    _set(m, "SIM_SPEED", 7.0)
+    assert run(m, 245, 1) == MAV_RESULT_ACCEPTED  # the same bytes as the save before
+    # DO_SET_PARAMETER by index, a PARAM_SET in between, the same DO_SET_PARAMETER again.
+    index = _param(m, "SIM_WIND_SPD").param_index
+    assert run(m, 180, index, 4.0) == MAV_RESULT_ACCEPTED
+    _set(m, "SIM_WIND_SPD", 9.0)
+    assert run(m, 180, index, 4.0) == MAV_RESULT_ACCEPTED
+    assert _param(m, "SIM_WIND_SPD").param_value == 4.0
+    # DO_SET_MODE, SET_MODE (#11) to another mode, the same DO_SET_MODE again.
+    assert run(m, 176, 1 | 4, 3) == MAV_RESULT_ACCEPTED
+    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 3) is not None
+    m.mav.set_mode_send(1, 1 | 16, 5)
+    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 5) is not None
+    assert run(m, 176, 1 | 4, 3) == MAV_RESULT_ACCEPTED
+    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 3, timeout=3) is not None
+    # COMMAND_INT has no confirmation: sent again after its ACK, it runs again too.
+    m.mav.command_int_send(1, 1, 0, 176, 0, 0, 1 | 4, 3, 0, 0, 0, 0, 0)
+    assert ack(m, 176).result == MAV_RESULT_ACCEPTED
+    m.mav.set_mode_send(1, 1 | 16, 5)
+    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 5) is not None
+    m.mav.command_int_send(1, 1, 0, 176, 0, 0, 1 | 4, 3, 0, 0, 0, 0, 0)
+    assert ack(m, 176).result == MAV_RESULT_ACCEPTED
+    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 3, timeout=3) is not None
+    # Power lost (kill -9): what is on disk is the 7 the second save acknowledged.
+    v.kill()
+    v2 = start(vehicle, "--set", "param_autosave_ms=0")
+    m2 = v2.gcs()
+    assert _param(m2, "SIM_SPEED").param_value == 7.0
+
+
 def _until(fn, timeout=10.0):
     deadline = time.time() + timeout
     while True:
@@ -281,31 +325,74 @@ def test_seed_commands_by_name_reach_application_handlers():
         commands.handle("NO_SUCH_COMMAND", handler)
 
 
-def test_resent_command_runs_once_refused_one_runs_again():
+def test_retry_is_answered_a_command_sent_again_runs_again():
+    """confirmation > 0 matching the command just acknowledged (same sender, command and
+    parameters, within the window) gets the same answer without a second run; the same
+    command with confirmation 0 is new and runs; a refused one is evaluated again."""
     b, g = bench()
     runs = []
     answer = [MAV_RESULT_ACCEPTED]
     b.ep.services["commands"].handle(31010, lambda cmd: runs.append(cmd.confirmation) or answer[0])
     f = g.command(31010, 1.0)
     resend = g.command(31010, 1.0, confirmation=1)
-    for frame in (f, resend, f):
+    resend2 = g.command(31010, 1.0, confirmation=2)
+    for frame in (f, resend, resend2):
         b.send(frame)
         b.run(1)
         assert b.ack_result == MAV_RESULT_ACCEPTED
     assert runs == [0] and b.acks >= 3
-    answer[0] = MAV_RESULT_DENIED
-    b.send(g.command(31010, 2.0))
+    b.send(f)  # sent again after its ACK: a new command
     b.run(1)
+    assert runs == [0, 0] and b.ack_result == MAV_RESULT_ACCEPTED
+    # Another sender's identical retry is not ours to answer from memory.
+    other = b.gcs(254, 190)
+    b.send(other.command(31010, 1.0, confirmation=1))
+    b.run(1)
+    assert runs == [0, 0, 1]
+    # Other parameters: not a retry of it.
     b.send(g.command(31010, 2.0, confirmation=1))
     b.run(1)
-    assert runs == [0, 0, 1] and b.ack_result == MAV_RESULT_DENIED
-    # After the repeat window the same command is new again.
+    assert runs == [0, 0, 1, 1]
+    answer[0] = MAV_RESULT_DENIED
+    b.send(g.command(31010, 3.0))
+    b.run(1)
+    b.send(g.command(31010, 3.0, confirmation=1))
+    b.run(1)
+    assert runs == [0, 0, 1, 1, 0, 1] and b.ack_result == MAV_RESULT_DENIED
+    # A retry later than the window is run again.
     answer[0] = MAV_RESULT_ACCEPTED
     b.send(f)
     b.run(3100)  # the bench's clock
-    b.send(f)
+    b.send(resend)
     b.run(1)
-    assert runs == [0, 0, 1, 0, 0]
+    assert runs == [0, 0, 1, 1, 0, 1, 0, 1]
+    # COMMAND_INT has no confirmation field: sent again, it runs again.
+    fi = g.command_int(31010, 0, 1.0)
+    for _ in range(2):
+        b.send(fi)
+        b.run(1)
+    assert runs[-2:] == [0, 0]
+
+
+def test_reboot_acknowledged_twice_is_scheduled_once():
+    from mavstack.endpoint import Reboot
+
+    b, g = bench()
+    b.send(g.command(246, 1.0))
+    b.run(1)
+    assert (b.ack_command, b.ack_result) == (246, MAV_RESULT_ACCEPTED)
+    texts = b.seen[253]
+    b.run(60)
+    # The same reboot again while the first is on its way (a new command, confirmation
+    # 0, or COMMAND_INT): ACCEPTED, and the reboot keeps its time.
+    b.send(g.command(246, 1.0))
+    b.run(1)
+    b.send(g.command_int(246, 0, 1.0))
+    b.run(1)
+    assert b.ack_result == MAV_RESULT_ACCEPTED and b.results[MAV_RESULT_ACCEPTED] >= 3
+    with pytest.raises(Reboot):
+        b.run(45)
+    assert b.seen[253] - texts <= 1  # one "Rebooting"
 
 
 def test_long_running_command_in_progress_then_final():
@@ -332,6 +419,24 @@ def test_long_running_command_in_progress_then_final():
     b.run(1)
     assert len(pending) == 1
     assert progress == [(5, 0), (5, 40), (5, 0), (0, 100), (0, 0)]
+    # While it runs, the same command again (confirmation 0, or as COMMAND_INT: no
+    # confirmation) is the same command in progress, not a second run.
+    progress.clear()
+    b.send(g.command(31011, 7.0))
+    b.run(1)
+    b.send(g.command(31011, 7.0))
+    b.run(1)
+    b.send(g.command_int(31011, 0, 7.0))
+    b.run(1)
+    b.send(g.command_int(31011, 0, 7.0))
+    b.run(1)
+    assert len(pending) == 3 and progress == [(5, 0), (5, 0), (5, 0), (5, 0)]
+    pending[1].done(MAV_RESULT_ACCEPTED)
+    pending[2].done(MAV_RESULT_ACCEPTED)
+    b.run(1)
+    b.send(g.command(31011, 7.0))  # after its ACK: new again
+    b.run(1)
+    assert len(pending) == 4
 
 
 def test_failing_handler_gives_failed_and_the_vehicle_goes_on(capsys):

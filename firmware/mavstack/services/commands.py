@@ -4,9 +4,20 @@ Handlers live in endpoint.commands {MAV_CMD id: handler(cmd) -> MAV_RESULT}; any
 service or the application adds entries, by id or by seed name (handle()).
 Every command addressed to us gets exactly one final COMMAND_ACK, sent to its sender
 in the same poll; a handler that needs time returns IN_PROGRESS, keeps
-`cmd.defer()` and finishes through it. An identical re-send (retries from MAVSDK,
-or confirmation > 0) of a command that ran is answered with its answer, not run
-twice; a refused command is simply evaluated again.
+`cmd.defer()` and finishes through it.
+
+Retries, as the command protocol defines them: a ground station that has not seen the
+ACK sends the command again with `confirmation` one higher. So a COMMAND_LONG with
+confirmation > 0 that matches the command just answered (same sender sysid and compid,
+command and parameters) within _RETRY_WINDOW_MS of its ACK gets that ACK again (and the
+message it asked for) without a second run; confirmation 0 is a new command and always
+runs, even if the same bytes came a moment ago: the vehicle may have changed in between
+(PARAM_SET, then the same PREFLIGHT_STORAGE save again must save again). COMMAND_INT has
+no confirmation field, so it always runs. Whatever its confirmation, a command identical
+to one still IN_PROGRESS (deferred) is that command: IN_PROGRESS again, never a second
+run. A refused command is simply evaluated again. Commands that must not take effect
+twice are idempotent themselves (arming when armed changes nothing, a reboot already
+pending keeps its time).
 
 A handler that answers with a message (REQUEST_MESSAGE, GET_HOME_POSITION, ...)
 sets `cmd.reply = msgid`: the message's producer (endpoint.producers) runs right
@@ -32,7 +43,7 @@ MAV_RESULT_UNSUPPORTED = const(3)
 MAV_RESULT_FAILED = const(4)
 MAV_RESULT_IN_PROGRESS = const(5)
 
-_REPEAT_WINDOW_MS = const(3000)  # a re-send later than this runs again
+_RETRY_WINDOW_MS = const(3000)  # a retry later than this after the ACK runs again
 
 
 class Command:
@@ -152,7 +163,8 @@ class Commands:
         self.cmd = Command()
         self.cmd._service = self
         self._guard = _Guard()
-        self._last_key = -1  # crc of the last command's sender + payload
+        self._last_key = -1  # crc of the last command's sender + payload, if it ran
+        self._pending_key = -1  # ... of the deferred command still IN_PROGRESS
         self._last_ms = 0
         self._last_result = 0
         self._last_param2 = 0
@@ -194,14 +206,22 @@ class Commands:
             return
         self.received += 1
         cmd = self._fill(link, p, is_int)
-        if cmd.key == self._last_key and ticks_diff(self.ep.now, self._last_ms) < _REPEAT_WINDOW_MS:
-            # An identical re-send: the answer again, not a second run.
+        if cmd.key == self._pending_key:
+            # The command still running, sent again: the same command, in progress.
+            self.ack(cmd, MAV_RESULT_IN_PROGRESS, 0, 0)
+            return
+        if self._is_retry(cmd):
+            # The ACK did not get through: the answer again, not a second run.
             self._last_ms = self.ep.now
             self.ack(cmd, self._last_result, 0, self._last_param2)
             # The requested message may be what got lost: send it again.
             self._send_reply(link, self._last_reply, self._last_reply_all)
             return
         self._execute(cmd)
+
+    def _is_retry(self, cmd):
+        return (cmd.confirmation > 0 and cmd.key == self._last_key
+                and ticks_diff(self.ep.now, self._last_ms) < _RETRY_WINDOW_MS)
 
     def _fill(self, link, p, is_int):
         cmd = self.cmd
@@ -235,6 +255,8 @@ class Commands:
         # Only a command that ran is remembered; a refused one may simply be tried again.
         ran = result == MAV_RESULT_ACCEPTED or result == MAV_RESULT_IN_PROGRESS
         self._last_key = cmd.key if ran else -1
+        if result == MAV_RESULT_IN_PROGRESS:
+            self._pending_key = cmd.key
         self._last_ms = self.ep.now
         self._last_result = result
         self._last_param2 = cmd.result_param2
@@ -244,7 +266,9 @@ class Commands:
         self._send_reply(cmd.link, cmd.reply, cmd.reply_all)
 
     def settle(self, key, result, result_param2):
-        """A deferred command finished: a re-send now gets its final result."""
+        """A deferred command finished: a retry now gets its final result."""
+        if key == self._pending_key:
+            self._pending_key = -1
         if key == self._last_key:
             self._last_result = result
             self._last_param2 = result_param2

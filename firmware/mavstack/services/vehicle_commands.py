@@ -83,6 +83,10 @@ class VehicleCommands:
             return _DENIED  # a valid request this board cannot carry out
         if not self._in_control(cmd, b"Reboot: "):
             return _DENIED
+        if self.status._reboot:
+            # Already on its way (this one's ACK may have been lost): asked again, it keeps
+            # its time rather than being put off by every repeat; the other action waits.
+            return _ACCEPTED if self.status._reboot == action else _TEMPORARILY_REJECTED
         if self.status.armed and not (cmd.finite(6) and cmd.int(6) == _FORCE_REBOOT):
             self.status.statustext(CRITICAL, b"Reboot: disarm first")
             return _DENIED
