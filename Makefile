@@ -15,7 +15,7 @@ MCU_DEBS := gcc-arm-none-eabi=15:12.2.rel1-1 libnewlib-arm-none-eabi=3.3.0-1.3+d
 MCU_TOOLS_OK = command -v qemu-system-arm >/dev/null && command -v arm-none-eabi-gcc >/dev/null \
 	&& test -d /usr/lib/arm-none-eabi/newlib
 
-.PHONY: setup test run bench dialects clean mcu-deps mcu-tools mcu-test mcu-firmware
+.PHONY: setup test run bench dialects clean mcu-deps mcu-tools mcu-test mcu-firmware fuzz soak
 
 setup: $(STAMP)
 
@@ -46,6 +46,17 @@ mcu-firmware: setup mcu-tools
 
 mcu-test: setup mcu-tools
 	$(PY) -m pytest -q tests/test_mcu.py tests/test_mcu_vehicle.py
+
+# The fuzzer (tests/fuzz/engine.py) for SECONDS; a one-minute run is part of `make test`.
+SECONDS ?= 600
+fuzz: setup
+	$(PY) tests/fuzz/engine.py --seconds $(SECONDS)
+
+# The unix vehicle with two ground stations at full link rate and a flood, heap locked,
+# for MINUTES; a two-minute soak is part of `make test`.
+MINUTES ?= 10
+soak: setup
+	SOAK_MINUTES=$(MINUTES) $(PY) -m pytest -q -s tests/test_soak.py
 
 run: setup
 	$(MICROPYTHON) firmware/main.py --board unix $(ARGS)

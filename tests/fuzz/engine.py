@@ -1,0 +1,273 @@
+"""The fuzz loop: inputs become batches of frames for the in-process vehicle; after every
+batch the invariants are checked; every couple of seconds a ground station runs real
+parameter, command and mission exchanges that must still succeed.
+
+    .venv/bin/python tests/fuzz/engine.py --seconds 60 [--seed 1] [--report FILE]
+        [--engine atheris|mutate] [--storage DIR]
+
+An input's first byte picks how it is read:
+    0  raw bytes straight into the parser (the seed corpus: valid frames of every message)
+    1  structured frames: valid CRC, random field values, from a generator seeded by the input
+    2  structured frames with raw input bytes spliced between them
+    3  structured frames all aimed at another vehicle: nothing stored or in force may change
+With atheris installed the inputs come from libFuzzer, guided by coverage of the stack;
+otherwise from a seeded mutator over the same corpus. Either way a report (JSON:
+frames, batches, exchanges, reboots, seconds, fuzz_frames_per_s) is written at the end;
+a broken invariant or an exception out of the vehicle stops the run, exit status 1,
+with the input saved next to the report.
+"""
+import argparse
+import json
+import os
+import random
+import shutil
+import sys
+import tempfile
+import time
+import traceback
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+TESTS = os.path.dirname(HERE)
+ROOT = os.path.dirname(TESTS)
+for _p in (TESTS, os.path.join(ROOT, "firmware")):
+    if _p not in sys.path:
+        sys.path.insert(0, _p)
+
+EXCHANGE_EVERY_S = 2.0
+MAX_FRAMES = 48  # structured frames in one batch
+
+
+class Fuzz:
+    def __init__(self, storage, seed, seconds, report):
+        from fuzz import invariants, rig
+
+        self.inv = invariants
+        self.rig = rig
+        self.v = rig.FuzzVehicle(storage, seed)
+        self.storage = storage
+        self.seconds = seconds
+        self.report_path = report
+        self.start = time.time()
+        self.next_exchange = self.start + EXCHANGE_EVERY_S
+        self.stats = {"frames": 0, "raw_bytes": 0, "batches": 0, "exchanges": 0, "reboots": 0,
+                      "foreign_batches": 0, "signed_frames": 0}
+        self.seq = 0
+        self.last = None
+
+    # --- one input --------------------------------------------------------------------
+    def one(self, data):
+        self.last = data
+        if not data:
+            return
+        v = self.v
+        mode = data[0] & 3
+        before = self.inv.snapshot(self.storage)
+        held = self.inv.state(v)
+        dirty = v.params.dirty
+        signing = v.signing.enabled
+        if mode == 0:
+            self._raw(data[1:])
+        else:
+            self._structured(data, mode)
+        v.poll(v.rng.randrange(1, 5), v.rng.choice((1, 5, 20)))
+        after = self.inv.snapshot(self.storage)
+        self.inv.check(v, after)
+        if mode == 3 and v.reboots == self.stats["reboots"]:
+            self._nothing_changed(before, after, held, dirty, signing)
+        self.stats["batches"] += 1
+        self.stats["reboots"] = v.reboots
+        now = time.time()
+        if now >= self.next_exchange:
+            self.exchanges()
+            self.next_exchange = time.time() + EXCHANGE_EVERY_S
+        if now - self.start >= self.seconds:
+            self.finish(0)
+
+    def _raw(self, data):
+        v = self.v
+        o = 0
+        while o < len(data):
+            n = v.rng.randrange(1, 300)
+            v.feed(data[o:o + n])
+            v.poll(1, v.rng.choice((0, 1, 3)))
+            o += n
+        self.stats["raw_bytes"] += len(data)
+
+    def _structured(self, data, mode):
+        v = self.v
+        rng = random.Random(data)
+        n = 1 + data[1] % MAX_FRAMES if len(data) > 1 else 1
+        splice = data[2:] if mode == 2 else b""
+        for _ in range(n):
+            key, stamp = self._signature(rng)
+            self.seq += 1
+            f = v.structured.frame(rng, self.seq, foreign=(mode == 3), key=key, stamp=stamp)
+            if splice and rng.random() < 0.3:
+                k = rng.randrange(len(splice) + 1)
+                f = (splice[:k] + f) if rng.random() < 0.5 else (f[:rng.randrange(len(f))] + splice[:k] + f)
+            v.feed(f)
+            v.poll(1, rng.choice((0, 1, 1, 2, 5)))
+        self.stats["frames"] += n
+        if mode == 3:
+            self.stats["foreign_batches"] += 1
+
+    def _signature(self, rng):
+        """With signing on: mostly frames signed with the key in force (fresh, replayed or
+        far-future timestamps), some with a wrong key, some unsigned."""
+        sg = self.v.signing
+        if not sg.enabled:
+            return None, 0
+        r = rng.random()
+        if r < 0.2:
+            return None, 0
+        ts = int.from_bytes(bytes(sg.ts), "little")
+        stamp = max(0, ts + rng.choice((1, 100, -1, -10 ** 6, 10 ** 8, rng.randrange(1 << 48) - ts)))
+        stamp &= (1 << 48) - 1
+        if r < 0.35:
+            return bytes(rng.randrange(256) for _ in range(32)), stamp
+        self.stats["signed_frames"] += 1
+        return bytes(sg.key), stamp
+
+    def _nothing_changed(self, before, after, held, dirty, signing):
+        files = self.inv.changed(before, after)
+        allowed = set()
+        if dirty:
+            allowed.add("params")  # an autosave that fell due: its content is checked
+        if signing:
+            allowed.add("signing_key")  # the periodic timestamp save
+        if set(files) - allowed:
+            raise self.inv.Broken("frames aimed at another vehicle changed storage: %s" % files)
+        if self.inv.state(self.v) != held:
+            raise self.inv.Broken("frames aimed at another vehicle changed parameters, plans or key")
+
+    def exchanges(self):
+        v = self.v
+        v.quiesce()
+        v.param_exchange()
+        v.command_exchange()
+        v.mission_exchange(v.rng.randrange(1, 6))
+        v.quiesce(3000)  # the parameter's autosave
+        if v.rng.random() < 0.85:
+            v.signing_off()  # (else the next batches run signed)
+        self.inv.check(v, self.inv.snapshot(self.storage))
+        self.stats["exchanges"] += 1
+
+    # --- the end ----------------------------------------------------------------------
+    def report(self):
+        seconds = time.time() - self.start
+        out = dict(self.stats)
+        out["seconds"] = round(seconds, 2)
+        out["fuzz_frames_per_s"] = round(out["frames"] / seconds, 1) if seconds > 0 else 0
+        out["engine"] = ENGINE
+        return out
+
+    def finish(self, status):
+        out = self.report()
+        if self.report_path:
+            with open(self.report_path, "w") as f:
+                json.dump(out, f, indent=1)
+        print("fuzz:", json.dumps(out), flush=True)
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
+
+
+def seeds(rng):
+    """The seed inputs: the corpus of valid frames (raw mode), and a few of each other mode."""
+    from fuzz import frames
+
+    out = [b"\x00" + f for f in frames.corpus(rng)]
+    out.append(b"\x00" + b"".join(frames.corpus(rng)[:40]))
+    for mode in (1, 2, 3):
+        for k in range(8):
+            out.append(bytes((mode, k * 7)) + rng.randbytes(8))
+    return out
+
+
+def mutate(rng, data, pool):
+    data = bytearray(data)
+    for _ in range(rng.randrange(1, 5)):
+        what = rng.randrange(5)
+        if what == 0 and data:
+            data[rng.randrange(len(data))] ^= 1 << rng.randrange(8)
+        elif what == 1 and data:
+            data[rng.randrange(len(data))] = rng.randrange(256)
+        elif what == 2:
+            k = rng.randrange(len(data) + 1)
+            data[k:k] = rng.randbytes(rng.randrange(1, 8))
+        elif what == 3 and len(data) > 2:
+            k = rng.randrange(1, len(data))
+            del data[k:k + rng.randrange(1, 8)]
+        else:
+            other = rng.choice(pool)
+            k = rng.randrange(len(data) + 1)
+            data[k:] = other[rng.randrange(len(other)):]
+    return bytes(data[:4096])
+
+
+ENGINE = "mutate"
+
+
+def main(argv):
+    global ENGINE
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seconds", type=float, default=60)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--report")
+    ap.add_argument("--storage")
+    ap.add_argument("--engine", choices=("atheris", "mutate"))
+    args = ap.parse_args(argv)
+    engine = args.engine
+    if engine is None:
+        try:
+            import atheris  # noqa: F401
+
+            engine = "atheris"
+        except ImportError:
+            engine = "mutate"
+    ENGINE = engine
+    work = tempfile.mkdtemp(prefix="mavfuzz-")
+    storage = args.storage or os.path.join(work, "storage")
+    os.makedirs(storage, exist_ok=True)
+    if engine == "atheris":
+        import atheris
+
+        with atheris.instrument_imports(include=["mavstack", "simulator"]):
+            import mavstack.parser  # noqa: F401
+            from fuzz import rig  # noqa: F401
+    fz = Fuzz(storage, args.seed, args.seconds, args.report)
+    rng = random.Random(args.seed)
+    pool = seeds(rng)
+
+    def test_one(data):
+        try:
+            fz.one(bytes(data))
+        except Exception:
+            traceback.print_exc()
+            crash = os.path.join(os.path.dirname(args.report or work + "/x"), "fuzz-crash.bin")
+            with open(crash, "wb") as f:
+                f.write(fz.last or b"")
+            print("fuzz: failing input saved to %s (%d bytes)" % (crash, len(fz.last or b"")), flush=True)
+            fz.finish(1)
+
+    if engine == "atheris":
+        corpus = os.path.join(work, "corpus")
+        os.makedirs(corpus)
+        for i, data in enumerate(pool):
+            with open(os.path.join(corpus, "seed%04d" % i), "wb") as f:
+                f.write(data)
+        atheris.Setup([sys.argv[0], corpus, "-max_total_time=%d" % (args.seconds + 60), "-seed=%d" % args.seed,
+                       "-max_len=4096", "-artifact_prefix=%s/" % work, "-print_final_stats=0",
+                       "-close_fd_mask=0"], test_one)
+        atheris.Fuzz()
+    else:
+        for data in pool:
+            test_one(data)
+        while True:
+            test_one(mutate(rng, rng.choice(pool), pool))
+    shutil.rmtree(work, ignore_errors=True)
+    fz.finish(0)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,76 @@
+"""The fuzzer (tests/fuzz) for FUZZ_SECONDS (default 60): the parser and every handled
+message, with real exchanges in between and the invariants checked after every batch.
+`make fuzz SECONDS=N` runs it longer. Also: the seed corpus is valid, and the checks
+catch what they are there to catch."""
+import json
+import os
+import random
+import subprocess
+import sys
+
+import pytest
+
+from conftest import PYTHON, ROOT
+
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+from fuzz import frames, invariants  # noqa: E402
+from fuzz.rig import FuzzVehicle  # noqa: E402
+
+FUZZ_SECONDS = float(os.environ.get("FUZZ_SECONDS", "60"))
+
+
+def test_corpus_is_every_message_valid():
+    from pymavlink.dialects.v20 import common as mav
+
+    corpus = frames.corpus(random.Random(3))
+    dec = mav.MAVLink(None)
+    dec.robust_parsing = True
+    got = dec.parse_buffer(b"".join(corpus))
+    assert len(got) == len(corpus)
+    assert not [m for m in got if m.get_type() == "BAD_DATA"]
+    assert {m.get_msgId() for m in got} == set(frames.IDS)
+
+
+def test_exchanges_and_checks_on_a_fresh_vehicle(tmp_path):
+    v = FuzzVehicle(tmp_path / "st")
+    v.param_exchange()
+    v.command_exchange()
+    v.mission_exchange(4)
+    v.quiesce(3000)
+    invariants.check(v, invariants.snapshot(v.storage))
+
+
+def test_checks_see_a_stored_value_that_is_not_in_force(tmp_path):
+    v = FuzzVehicle(tmp_path / "st")
+    v.param_exchange()
+    v.quiesce(3000)  # saved
+    stored = invariants.snapshot(v.storage)
+    invariants.check(v, stored)
+    v.params.put(v.params.index("SIM_SPEED"), 29.5)  # in force, not saved, not marked dirty
+    with pytest.raises(invariants.Broken, match="SIM_SPEED"):
+        invariants.check(v, stored)
+
+
+def test_checks_see_a_plan_that_is_not_the_stored_one(tmp_path):
+    v = FuzzVehicle(tmp_path / "st")
+    v.mission_exchange(2)
+    with open(os.path.join(v.storage, "mission.0"), "r+b") as f:
+        f.write(b"\xff" * 16)
+    with open(os.path.join(v.storage, "mission.1"), "r+b") as f:
+        f.write(b"\xff" * 16)
+    with pytest.raises(invariants.Broken, match="mission plan stored"):
+        invariants.check(v, invariants.snapshot(v.storage))
+
+
+def test_fuzz(tmp_path):
+    report = tmp_path / "report.json"
+    proc = subprocess.run([PYTHON, os.path.join(ROOT, "tests", "fuzz", "engine.py"), "--seconds",
+                           str(FUZZ_SECONDS), "--report", str(report)],
+                          cwd=str(tmp_path), capture_output=True, text=True, timeout=FUZZ_SECONDS + 300)
+    tail = (proc.stdout[-3000:] + "\n" + proc.stderr[-6000:])
+    assert proc.returncode == 0, tail
+    r = json.loads(report.read_text())
+    print(r)
+    assert r["frames"] >= 50 * FUZZ_SECONDS, r
+    assert r["exchanges"] >= max(1, FUZZ_SECONDS // 10), r
+    assert r["foreign_batches"] >= 1, r
