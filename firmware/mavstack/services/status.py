@@ -405,7 +405,7 @@ class Status:
     def _on_heartbeat(self, link, p):
         now = self.ep.now
         if self.operator is not None:
-            self.operator.heartbeat(link.rx.sysid, now)
+            self.operator.heartbeat(link, now)
         if p[4] != _MAV_TYPE_GCS:
             return
         i = link.index
