@@ -2,10 +2,18 @@
 
 With a passkey configured, only the ground station that took control with it may
 change parameters, missions, the mode or arm: services ask endpoint.allows(link),
-which looks at the sender of the frame being handled. Control is released by the
-holder (control_request 1), or when the holder's heartbeats stop for the GCS timeout,
-so that a second ground station that knows the passkey can take over a vehicle whose
-operator is gone. Without a passkey nobody needs control and every request is granted.
+which looks at the sender of the frame being handled. The holder is one ground
+station, not one system id (255 is most ground stations' default): its sysid and
+compid, the link it spoke on (its index), and on UDP the address its datagrams came
+from (the transport's rx_peer, None where the transport does not tell). Control is
+released by the holder (control_request 1), or when the holder's own heartbeats stop
+for the GCS timeout (another station's, whatever its sysid, do not count), so that a
+second ground station that knows the passkey can take over a vehicle whose operator is
+gone. Without a passkey nobody needs control and every request is granted.
+
+The passkey travels in clear text and the identity is what the frames claim: this
+keeps honest ground stations from interfering with each other, not an attacker who can
+see or reach the link. Only message signing authenticates (services/signing.py).
 """
 from ..compat import const, ticks_diff
 from ..fields import cstr_len
@@ -26,13 +34,24 @@ class Operator:
         self.passkey = passkey.encode() if isinstance(passkey, str) else passkey
         self.timeout_ms = timeout_ms
         self.sysid = 0  # ground station in control, 0: none
+        self.compid = 0
+        self.link = -1  # the index of the link it spoke on
+        self.addr = None  # where its datagrams come from (the transport's rx_peer)
         self.seen = 0  # ticks_ms of its last heartbeat
 
+    # allows() and heartbeat() run for frames as they come: attribute compares only, the
+    # address compared with == against the object kept when control was taken.
     def allows(self, link):
-        return self.sysid != 0 and link.rx.sysid == self.sysid
+        return self.sysid != 0 and self._holder(link)
 
-    def heartbeat(self, sysid, now):
-        if sysid == self.sysid:
+    def _holder(self, link):
+        rx = link.rx
+        if rx.sysid != self.sysid or rx.compid != self.compid or link.index != self.link:
+            return False
+        return getattr(link.transport, "rx_peer", None) == self.addr
+
+    def heartbeat(self, link, now):
+        if self.sysid != 0 and self._holder(link):
             self.seen = now
 
     def check(self, now):
@@ -42,25 +61,37 @@ class Operator:
 
     def request(self, link, p):
         """A CHANGE_OPERATOR_CONTROL addressed to us -> the ACK code."""
-        sender = link.rx.sysid
+        holder = self.allows(link)
         if p[1] == 0:
             if p[2] != 0:
                 return _ACK_UNSUPPORTED_ENCRYPTION
             if not self._passkey_ok(p):
                 return _ACK_WRONG_PASSKEY
-            if self.sysid != 0 and self.sysid != sender:
+            if self.sysid != 0 and not holder:
                 return _ACK_ALREADY_CONTROLLED
-            if self.sysid != sender:
-                self.sysid = sender
-                self.ep.statustext(NOTICE, "Operator control: GCS %d" % sender)
+            if not holder:
+                self._take(link)
             self.seen = self.ep.now
             return _ACK_OK
-        if self.sysid != 0 and self.sysid != sender:
+        if self.sysid != 0 and not holder:
             return _ACK_ALREADY_CONTROLLED
         if self.sysid:
             self.sysid = 0
             self.ep.statustext(NOTICE, b"Operator control released")
         return _ACK_OK
+
+    def _take(self, link):
+        # Rare (and it may allocate): the holder's identity, its address kept as is, or
+        # as bytes if the transport hands out a buffer it will change in place.
+        addr = getattr(link.transport, "rx_peer", None)
+        if isinstance(addr, (bytearray, memoryview)):
+            addr = bytes(addr)
+        self.sysid = link.rx.sysid
+        self.compid = link.rx.compid
+        self.link = link.index
+        self.addr = addr
+        self.ep.statustext(NOTICE, "Operator control: GCS %d (component %d, link %d)" % (
+            self.sysid, self.compid, self.link))
 
     def _passkey_ok(self, p):
         key = self.passkey
