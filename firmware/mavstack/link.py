@@ -1,13 +1,71 @@
 """A link: one transport with its own parser, encoder, sequence numbers, MAVLink
-version and statistics. The endpoint owns several and routes them all to one vehicle.
+version, statistics and byte budget. The endpoint owns several and routes them all to
+one vehicle.
+
+The budget. Every frame a link sends, whoever sends it, is paid from one token bucket
+filled at link.bytes_per_s (in thousandths of a byte, refilled from endpoint.now,
+capped at 200 ms of the link: a burst of answers, twenty command ACKs, fits), so the link never
+carries more than its medium does, bursts of a few hundred bytes aside. A send is
+ranked; each rank may spend the bucket down to its own floor, so the higher ranks
+always find credit the lower ones left them:
+
+    RANK_VITAL  HEARTBEAT: may go a little into debt (its 1 Hz always holds)
+    RANK_REPLY  answers to the ground station in control (or to anyone when operator
+                control is off) that has not been asking for more than its share
+    RANK_BULK   telemetry streams: what the replies leave
+    RANK_FILL   parameter lists, change announcements: what the streams leave
+    RANK_OTHER  answers to a ground station not in control or over its share (a
+                flood), PING and DATA_STREAM answers: only credit nobody else wants
+    RANK_AUTO   (link.rank's default) while a received frame is being handled: REPLY
+                or OTHER by its sender, as above; outside of it (timers): REPLY
+
+API (allocation-free, 32-bit clean):
+    link.send(msgid, compid=-1) -> bool   frame the payload packed at link.begin() and
+        send it at link.rank; False, with nothing sent and the sequence number given
+        back, when the budget cannot pay for it (counted in link.tx_held) or the
+        transport refused it (link.tx_dropped). A one-off answer that is refused is
+        simply dropped: the ground station asks again.
+    link.can_send(nbytes, rank) -> bool   would a frame of nbytes go at this rank now?
+        Bulk senders ask before producing and wait (a later tick) when it is False.
+    link.rank = RANK_BULK ... link.rank = RANK_AUTO   the rank of the sends made in
+        between, for senders that call producers (send(link) functions) of others.
+    link.tx_bytes, link.tx_low (bytes sent at FILL and OTHER), wrapping at TX_WRAP.
+A link with bytes_per_s of 0 (or over _UNPACED) is not budgeted at all.
+
+A sender's share: each of the last _SENDERS (sysid, compid) a link answered has an
+allowance of bytes, full at bytes_per_s / 8 and refilled at bytes_per_s / 16 a second;
+answers it is owed are paid from it too, and one whose allowance is spent is answered at
+RANK_OTHER. So a ground station's bursts (twenty commands, a page of parameter reads)
+go at RANK_REPLY, while a flood from any one source (or a few) soon waits behind
+streams and lists and leaves the reserve below RANK_BULK's floor to other ground
+stations' reads and command ACKs. (A flood that changes its sysid all the time gets
+each new identity's allowance once per slot it takes over.)
 """
-from .compat import const
+from .compat import const, ticks_diff, ticks_add
 from .parser import Parser
 from .encoder import Encoder
 
 _RX_CHUNK = const(512)
 _RX_READS_PER_POLL = const(8)  # bounds the time one busy link can take from a poll
 TX_WRAP = const(0x1FFFFFFF)  # tx_bytes wraps here: take differences as (a - b) & TX_WRAP
+
+RANK_AUTO = const(-1)
+RANK_VITAL = const(0)
+RANK_REPLY = const(1)
+RANK_BULK = const(2)
+RANK_FILL = const(3)
+RANK_OTHER = const(4)
+# Each rank's floor, in thousandths of a byte: a send may take the credit down to it.
+# The gaps between the floors are what each rank keeps for the ones above it: a due
+# stream frame (up to 64 bytes) goes at once while a list keeps the credit at its floor.
+_FLOOR = (-128000, 0, 128000, 192000, 256000)
+_BURST_MS = const(200)  # the bucket holds 200 ms of the link ...
+_MIN_CAP = const(556000)  # ... or RANK_OTHER's floor and a full MAVLink 2 frame
+_UNPACED = const(5000000)  # B/s: above this a link is not budgeted (and bps * ms stays small)
+_SENDERS = const(8)
+_SHARE_MS = const(250)  # allowances are topped up this often ...
+_SHARE_STEP_DIV = const(64)  # ... by bytes_per_s / 64 (bytes_per_s / 16 a second)
+_SHARE_CAP_DIV = const(8)  # up to bytes_per_s / 8
 
 
 class Link:
@@ -26,6 +84,21 @@ class Link:
         self.tx_bytes = 0
         self.tx_dropped = 0
         self._rxbuf = bytearray(getattr(transport, "rx_chunk", _RX_CHUNK))
+        # A transport that wants to know which of its datagrams held a valid frame (UDP
+        # servers choose their peers by it): heard(now), bound once here.
+        self._heard = getattr(transport, "heard", None)
+        # The budget (see the module's note).
+        self.rank = RANK_AUTO
+        self.tx_low = 0
+        self.tx_held = 0
+        self.credit = _cap(self.bytes_per_s)  # a link starts with a full bucket
+        self._last = endpoint.now
+        self._share_at = endpoint.now
+        self._in_frame = False  # a received frame is being handled
+        self._slot = -1  # its sender's place in _who, -1: not looked up yet
+        self._rank_now = RANK_REPLY
+        self._who = [0] * _SENDERS  # (sysid << 8 | compid) + 1, 0: free
+        self._allow = [0] * _SENDERS  # bytes each may still be answered at RANK_REPLY
 
     def poll(self):
         """Read and parse whatever the transport has, without waiting."""
@@ -39,7 +112,13 @@ class Link:
         if self.negotiate and self.rx.version == 2:
             self.tx.version = 2
             self.negotiate = False
+        if self._heard is not None:
+            self._heard(self.endpoint.now)
+        self._in_frame = True
+        self._slot = -1
         self.endpoint.dispatch(self, msgid, payload)
+        self._in_frame = False
+        self._slot = -1
 
     @property
     def version(self):
@@ -50,18 +129,130 @@ class Link:
         return self.tx.begin()
 
     def send(self, msgid, compid=-1):
-        """Frame and transmit the payload packed at begin(); False if not sent."""
+        """Frame and transmit the payload packed at begin(), paid from the budget at
+        self.rank; False if not sent."""
         ep = self.endpoint
         n = self.tx.finish(msgid, ep.sysid, ep.compid if compid < 0 else compid)
         if n == 0:
+            return False
+        if not self._afford(n):
+            self._unsend()
             return False
         if self.transport.write(self.txbuf, n) != n:
             self.tx_dropped += 1
             return False
         self.tx_bytes = (self.tx_bytes + n) & TX_WRAP  # a counter that stays a small int
+        self._spend(n)
         return True
 
     def send_payload(self, msgid, payload, n, compid=-1):
         """Transmit a prepacked payload[0:n] (telemetry slots keep theirs ready)."""
         self.tx.load(payload, n, msgid)
         return self.send(msgid, compid)
+
+    # --- the budget (small functions: MicroPython takes a frame state of more than
+    # about 11 words from the heap on every call) -------------------------------------
+    def can_send(self, nbytes, rank):
+        """Would a frame of nbytes go at rank (RANK_AUTO: as send would rank it) now?"""
+        bps = self.bytes_per_s
+        if bps <= 0 or bps > _UNPACED:
+            return True
+        if rank < 0:
+            rank = self._auto()
+        self._refill()
+        return self.credit - nbytes * 1000 >= _FLOOR[rank]
+
+    def _afford(self, n):
+        rank = self.rank
+        if rank < 0:
+            rank = self._auto()
+        self._rank_now = rank
+        bps = self.bytes_per_s
+        if bps <= 0 or bps > _UNPACED:
+            return True
+        self._refill()
+        if self.credit - n * 1000 >= _FLOOR[rank]:
+            return True
+        self.tx_held += 1
+        return False
+
+    def _unsend(self):
+        # The frame was sealed but does not go: its sequence number is given back, so
+        # the peer counts no loss.
+        tx = self.tx
+        tx.seq = (tx.seq - 1) & 0xFF
+        tx.frames -= 1
+
+    def _spend(self, n):
+        bps = self.bytes_per_s
+        if bps > 0 and bps <= _UNPACED:
+            self.credit -= n * 1000
+        if self._rank_now >= RANK_FILL:
+            self.tx_low = (self.tx_low + n) & TX_WRAP
+        if self._slot >= 0:
+            allow = self._allow[self._slot] - n
+            self._allow[self._slot] = allow if allow > 0 else 0
+
+    def _refill(self):
+        now = self.endpoint.now
+        dt = ticks_diff(now, self._last)
+        if dt == 0:
+            return
+        self._last = now
+        if dt > 0:
+            bps = self.bytes_per_s
+            cap = _cap(bps)
+            if dt > cap // bps + 1:
+                dt = cap // bps + 1  # (bps * dt stays below 2^30)
+            credit = self.credit + bps * dt
+            self.credit = credit if credit < cap else cap
+        if ticks_diff(now, self._share_at) >= 0:
+            self._share_at = ticks_add(now, _SHARE_MS)
+            _top_up(self._allow, self.bytes_per_s)
+
+    def _auto(self):
+        """The rank of a send that did not say: by the sender of the frame being handled."""
+        if not self._in_frame:
+            return RANK_REPLY
+        op = self.endpoint.operator
+        if op is not None and not op.allows(self):
+            return RANK_OTHER
+        if op is not None:
+            return RANK_REPLY  # the ground station in control
+        if self._slot < 0:
+            self._slot = self._sender()
+        if self._allow[self._slot] <= 0:
+            return RANK_OTHER
+        return RANK_REPLY
+
+    def _sender(self):
+        """The slot of the current sender's allowance (a newcomer takes over the one
+        with the most left: the quietest sender's)."""
+        key = (self.rx.sysid << 8 | self.rx.compid) + 1
+        allow = self._allow
+        i = 0
+        most = 0
+        while i < _SENDERS:
+            if self._who[i] == key:
+                return i
+            if allow[i] > allow[most] or self._who[i] == 0:
+                most = i
+            i += 1
+        self._who[most] = key
+        allow[most] = self.bytes_per_s // _SHARE_CAP_DIV
+        return most
+
+
+def _cap(bps):
+    cap = bps * _BURST_MS
+    return cap if cap > _MIN_CAP else _MIN_CAP
+
+
+def _top_up(allow, bps):
+    step = bps // _SHARE_STEP_DIV
+    cap = bps // _SHARE_CAP_DIV
+    i = 0
+    while i < _SENDERS:
+        a = allow[i] + step
+        allow[i] = a if a < cap else cap
+        i += 1
