@@ -3,6 +3,7 @@
 Same contract as bytes_portable: tests run both on the same inputs.
 """
 import micropython
+from micropython import const
 
 
 @micropython.viper
@@ -41,3 +42,95 @@ def zero(dst: ptr8, start: int, end: int):
     while start < end:
         dst[start] = 0
         start += 1
+
+
+# scan's layout of the parser's buffer after the frame; bytes_portable.py has the contract.
+SLOTS = const(280)
+IDS = const(312)
+
+
+@micropython.viper
+def scan(src: ptr8, pos: int, end: int, buf: ptr8) -> int:
+    fast = 1
+    if end < 0:
+        fast = 0
+        end = 0 - end
+    k = pos
+    while k < end:
+        b = src[k]
+        if b == 0xFD or b == 0xFE:
+            break
+        k += 1
+    if k > pos:
+        return -1 - (k << 2)
+    more = -1 - (pos << 2 | 1)  # bytewise from pos
+    if src[pos] == 0xFE:
+        if end - pos < 6:
+            return more
+        plen = src[pos + 1]
+        t = IDS + src[pos + 5] * 3
+        full = buf[t + 2]
+        if full == 0 or plen < buf[t + 1] or plen > full:
+            return more
+        hdr = 6
+        n = plen + 8
+        signed = 0
+    else:
+        if end - pos < 10:
+            return more
+        plen = src[pos + 1]
+        signed = src[pos + 2]
+        if signed > 1 or src[pos + 8] or src[pos + 9]:
+            return more
+        t = IDS + src[pos + 7] * 3
+        full = buf[t + 2]
+        if full == 0 or plen == 0 or plen > full:
+            return more
+        hdr = 10
+        n = plen + 12
+        if signed:
+            n += 13
+    if end - pos < n:
+        return more
+    # Copy and CRC in one pass over header and payload, then CRC_EXTRA.
+    crc = 0xFFFF
+    i = pos + 1
+    e = pos + hdr + plen
+    buf[0] = src[pos]
+    d = 0 - pos
+    while i < e:
+        b = src[i]
+        buf[d + i] = b
+        b = (b ^ crc) & 0xFF
+        b = (b ^ (b << 4)) & 0xFF
+        crc = ((crc >> 8) ^ (b << 8) ^ (b << 3) ^ (b >> 4)) & 0xFFFF
+        i += 1
+    b = (buf[t] ^ crc) & 0xFF
+    b = (b ^ (b << 4)) & 0xFF
+    crc = ((crc >> 8) ^ (b << 8) ^ (b << 3) ^ (b >> 4)) & 0xFFFF
+    if crc != (src[e] | src[e + 1] << 8):
+        return more
+    e = pos + n
+    while i < e:
+        buf[d + i] = src[i]
+        i += 1
+    if fast == 0 or signed:
+        return -1 - (e << 2 | 2)
+    i = hdr + plen
+    full += hdr
+    while i < full:
+        buf[i] = 0
+        i += 1
+    # A sender already seen, with no sequence gap: count it here; else Python does.
+    hdr = 2 if hdr == 6 else 4  # now the offset of seq, then sysid, compid
+    i = SLOTS
+    while i < IDS:
+        if buf[i] and buf[i + 1] == buf[hdr + 1] and buf[i + 2] == buf[hdr + 2]:
+            break
+        i += 4
+    if i == IDS or ((buf[hdr] - buf[i + 3] - 1) & 0xFF):
+        return -1 - (e << 2 | 2)
+    buf[i + 3] = buf[hdr]
+    if hdr == 2:
+        return e << 1 | 1
+    return e << 1

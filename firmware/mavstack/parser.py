@@ -8,9 +8,15 @@ memoryviews made at start-up, zero-extended to the message's full length.
 A candidate frame that fails (bad CRC, unknown id, impossible length, unknown
 incompat flags) is not thrown away whole: its bytes after the start marker are
 scanned again, so a valid frame that begins inside rejected bytes is still found.
+
+Most frames arrive whole inside a chunk: for those one kernel call (kernels.scan)
+finds, checks, copies and zero-extends the frame and counts its sequence number, and
+Python only sets the fields and delivers. Whatever that call does not take whole (a
+frame split across chunks, a rejected candidate, ids >= 256) goes through the bytewise
+state machine, so the results are the same either way.
 """
 from .compat import const
-from .kernels import crc16, find_stx, copy, zero
+from .kernels import crc16, find_stx, copy, zero, scan, SLOTS, IDS
 
 STX_V1 = const(0xFE)
 STX_V2 = const(0xFD)
@@ -31,7 +37,16 @@ class Parser:
     def __init__(self, crc_len, on_frame):
         self.crc_len = crc_len  # dialect.CRC_LEN: id -> crc_extra | len1 << 8 | len2 << 16
         self.on_frame = on_frame  # called as on_frame(msgid, payload)
-        self.buf = bytearray(FRAME_MAX)
+        # The frame at [0:FRAME_MAX), then what kernels.scan reads and keeps: the sender
+        # slots for sequence numbers, and the dialect's ids < 256 as a table.
+        self.buf = bytearray(IDS + 3 * 256)
+        buf = self.buf
+        for msgid in crc_len:
+            if msgid < 256:
+                info = crc_len[msgid]
+                buf[IDS + 3 * msgid] = info & 0xFF
+                buf[IDS + 3 * msgid + 1] = (info >> 8) & 0xFF
+                buf[IDS + 3 * msgid + 2] = info >> 16
         mv = memoryview(self.buf)
         self._payload_v1 = mv[HEADER_V1 : HEADER_V1 + 255]
         self._payload_v2 = mv[HEADER_V2 : HEADER_V2 + 255]
@@ -61,9 +76,7 @@ class Parser:
         self.unknown_ids = 0
         self.bad_frames = 0  # impossible length or unknown incompat flags
         self.lost = 0
-        self._src_key = [-1] * _SOURCES
-        self._src_seq = bytearray(_SOURCES)
-        self._src_next = 0
+        self._src_next = 0  # the sender slot a new sender takes
 
     def feed(self, data, n=-1):
         """Consume data[0:n] (all of it when n < 0)."""
@@ -73,10 +86,54 @@ class Parser:
         while True:
             if self._rpos < self._rlen:
                 self._rpos = self._step(self._replay, self._rpos, self._rlen)
-            elif pos < n:
+                continue
+            if self._cnt:
+                if pos >= n:
+                    return
                 pos = self._step(data, pos, n)
+                continue
+            # Idle: whole frames in data, one kernel call each (see kernels.scan). Few
+            # locals, so that the frame state stays off the heap.
+            while pos < n:
+                r = scan(data, pos, n if self.verify is None else -n, self.buf)
+                if r < 0:
+                    break
+                pos = r >> 1
+                buf = self.buf
+                if r & 1:
+                    self.version = 1
+                    self.seq = buf[2]
+                    self.sysid = buf[3]
+                    self.compid = buf[4]
+                    r = buf[5]
+                    self.payload = self._payload_v1
+                else:
+                    self.version = 2
+                    self.seq = buf[4]
+                    self.sysid = buf[5]
+                    self.compid = buf[6]
+                    r = buf[7]
+                    self.payload = self._payload_v2
+                self.msgid = r
+                self.signed = False
+                self.frames += 1
+                self.on_frame(r, self.payload)
             else:
                 return
+            r = -1 - r
+            if r & 3 == 1:  # the state machine's, from pos
+                pos = self._step(data, pos, n)
+            else:
+                pos = self._scanned(pos, r)
+
+    def _scanned(self, pos, r):
+        """A gap or a frame a scan call left to Python (r = its answer decoded) -> the
+        next pos."""
+        if r & 3 == 0:  # no start marker up to r >> 2
+            self.bytes_discarded += (r >> 2) - pos
+        else:
+            self._deliver()
+        return r >> 2
 
     # The per-frame path keeps few locals: MicroPython takes a frame state of more than
     # about 11 words (locals plus value stack) from the heap on every call. Bytes being
@@ -166,8 +223,7 @@ class Parser:
 
     def _deliver(self):
         buf = self.buf
-        info = self._info
-        plen = self._plen
+        plen = buf[1]
         if buf[0] == STX_V2:
             self.version = 2
             self.seq = buf[4]
@@ -190,7 +246,7 @@ class Parser:
             start = HEADER_V1
         if self.verify is not None and not self.verify(buf, plen, self.signed):
             return
-        full = info >> 16
+        full = self.crc_len[self.msgid] >> 16
         if plen < full:
             zero(buf, start + plen, start + full)
         self.frames += 1
@@ -210,17 +266,21 @@ class Parser:
         return pos
 
     def _count_sequence(self):
-        key = self.sysid << 8 | self.compid
-        keys = self._src_key
-        for i in range(_SOURCES):
-            if keys[i] == key:
-                self.lost += (self.seq - self._src_seq[i] - 1) & 0xFF
-                self._src_seq[i] = self.seq
+        # The sender slots in buf (kernels.scan counts a known sender with no gap itself).
+        buf = self.buf
+        i = SLOTS
+        while i < IDS:
+            if buf[i] and buf[i + 1] == self.sysid and buf[i + 2] == self.compid:
+                self.lost += (self.seq - buf[i + 3] - 1) & 0xFF
+                buf[i + 3] = self.seq
                 return
-        i = self._src_next
-        self._src_next = (i + 1) % _SOURCES
-        keys[i] = key
-        self._src_seq[i] = self.seq
+            i += 4
+        i = SLOTS + 4 * self._src_next
+        self._src_next = (self._src_next + 1) % _SOURCES
+        buf[i] = 1
+        buf[i + 1] = self.sysid
+        buf[i + 2] = self.compid
+        buf[i + 3] = self.seq
 
     def reset_stats(self):
         self.frames = self.crc_errors = self.bytes_discarded = 0
