@@ -8,7 +8,7 @@ repeatable). On a board, with no arguments, the profile flashed as board.py is u
 import gc
 import sys
 
-from mavstack.compat import ticks_ms, sleep_ms
+from mavstack.compat import ticks_ms, ticks_diff, sleep_ms
 from mavstack.endpoint import Endpoint, Reboot, Shutdown
 from mavstack.storage import Storage
 from mavstack.transport import open_transport
@@ -78,7 +78,9 @@ def build(board, opts):
         gc.collect()  # keep the heap unfragmented while each service loads
         module = __import__("mavstack.services." + name, None, None, ("create",))
         module.create(ep)
-    app = board.application(ep) if hasattr(board, "application") else None
+    # --set application=0: the stack alone (the unix simulator allocates, so a soak under
+    # heap_lock runs without it).
+    app = board.application(ep) if hasattr(board, "application") and ep.setting("APPLICATION", True) else None
     _check_ram(ep, board)
     return ep, app
 
@@ -102,10 +104,17 @@ def run(ep, app=None, period_ms=1):
     # HEAP_LOCK (--set heap_lock=1): the loop must not allocate, and a MemoryError
     # says where it did.
     lock = ep.setting("HEAP_LOCK", False) and hasattr(gc, "mem_alloc")
-    if lock:
+    # HEAP_REPORT_MS (--set heap_report_ms=N): print the heap in use and what mem_total()
+    # moved by since the last report, every N ms (the soak test reads these lines).
+    report_ms = ep.setting("HEAP_REPORT_MS", 0) if hasattr(gc, "mem_alloc") else 0
+    if lock or report_ms:
         import micropython
 
         gc.collect()
+    if report_ms:
+        _REPORT[0] = micropython.mem_total()
+        _REPORT[1] = ticks_ms()
+    if lock:
         micropython.heap_lock()
     try:
         while True:
@@ -113,6 +122,9 @@ def run(ep, app=None, period_ms=1):
             ep.poll(now)
             if app is not None:
                 app.tick(now)
+            if report_ms and ticks_diff(now, _REPORT[1]) >= report_ms:
+                _REPORT[1] = now
+                _heap_report(lock)
             idle(period_ms)
     except MemoryError as e:
         if lock:
@@ -123,6 +135,22 @@ def run(ep, app=None, period_ms=1):
     finally:
         if lock:
             micropython.heap_unlock()
+
+
+_REPORT = [0, 0]  # mem_total() after the last heap report, and when it was made
+
+
+def _heap_report(lock):
+    import micropython
+
+    moved = micropython.mem_total() - _REPORT[0]
+    used = gc.mem_alloc()
+    if lock:
+        micropython.heap_unlock()  # printing allocates: what it takes is not counted
+    print("mavstack: heap", used, "moved", moved, "locked" if lock else "unlocked")
+    if lock:
+        micropython.heap_lock()
+    _REPORT[0] = micropython.mem_total()
 
 
 def main(argv):
