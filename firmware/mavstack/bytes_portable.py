@@ -11,13 +11,15 @@ Loops over indices rather than slices so that nothing is allocated on MicroPytho
 scan is the parser's fast path: what it delivers, the bytewise state machine would
 deliver the same way; anything else it leaves to that state machine. buf is the
 parser's buffer: the frame at [0:SLOTS), then 8 sender slots of (in use, sysid, compid,
-last seq) at [SLOTS:IDS), then for each msgid < 256 (crc_extra, least length, full
-length) at IDS + 3 * msgid, full length 0 for an id the dialect lacks. end < 0 means
--end, and "careful": a valid frame is copied but left to Python to deliver (a verify
-hook is set). Returns
-  e << 1 | v1          a frame src[pos:e], unsigned, copied into buf, payload zero-
+last seq) at [SLOTS:FIELDS), at FIELDS the version the parser's version, payload and
+signed fields hold from the last frame scan delivered (0: unknown, Python's to clear),
+then for each msgid < 256 (crc_extra, least length, full length) at IDS + 3 * msgid,
+full length 0 for an id the dialect lacks. end < 0 means -end, and "careful": a valid
+frame is copied but left to Python to deliver (a verify hook is set). Returns
+  e << 2 | v1 << 1 | f a frame src[pos:e], unsigned, copied into buf, payload zero-
                        extended to its full length, its sender's sequence number stored
-                       (in a slot already, no gap): Python sets the fields and delivers
+                       (in a slot already, no gap): Python sets the fields (version,
+                       payload and signed too when f is 1) and delivers
   -1 - (k << 2)        src[pos:k] holds no start marker (k = end if none at all)
   -1 - (pos << 2 | 1)  the state machine takes it from pos: frame incomplete, id >= 256,
                        or rejected (impossible length or flags, unknown id, bad CRC)
@@ -28,7 +30,8 @@ buf[0:SLOTS] is unspecified after the first two answers and the third.
 from .compat import const
 
 SLOTS = const(280)
-IDS = const(312)
+FIELDS = const(312)
+IDS = const(316)
 
 
 def crc16(buf, start, end, crc):
@@ -76,7 +79,15 @@ def scan(src, pos, end, buf):
         return n
     if buf[0] == 0xFD and buf[2] or not _settle(buf):
         return -1 - ((pos + n) << 2 | 2)
-    return (pos + n) << 1 | (buf[0] == 0xFE)
+    return (pos + n) << 2 | _fields(buf)
+
+
+def _fields(buf):
+    v = 1 if buf[0] == 0xFE else 2
+    if buf[FIELDS] == v:
+        return 2 if v == 1 else 0
+    buf[FIELDS] = v
+    return 3 if v == 1 else 1
 
 
 def _check(src, pos, end, buf):

@@ -46,7 +46,21 @@ def zero(dst: ptr8, start: int, end: int):
 
 # scan's layout of the parser's buffer after the frame; bytes_portable.py has the contract.
 SLOTS = const(280)
-IDS = const(312)
+FIELDS = const(312)
+IDS = const(316)
+_CRC = bytearray(512)  # the CRC's table, 256 16-bit entries: one lookup a byte
+
+
+@micropython.viper
+def _crc_table(t: ptr16):
+    i = 0
+    while i < 256:
+        c = (i ^ (i << 4)) & 0xFF
+        t[i] = ((c << 8) ^ (c << 3) ^ (c >> 4)) & 0xFFFF
+        i += 1
+
+
+_crc_table(_CRC)
 
 
 @micropython.viper
@@ -92,27 +106,26 @@ def scan(src: ptr8, pos: int, end: int, buf: ptr8) -> int:
             n += 13
     if end - pos < n:
         return more
-    # Copy and CRC in one pass over header and payload, then CRC_EXTRA.
+    # Copy and CRC in one pass over header and payload (dst: buf as seen from src's
+    # indices), then CRC_EXTRA.
     crc = 0xFFFF
-    i = pos + 1
+    tbl = ptr16(_CRC)
+    dst = ptr8(int(buf) - pos)
+    i = pos
     e = pos + hdr + plen
-    buf[0] = src[pos]
-    d = 0 - pos
+    dst[i] = src[i]
+    i += 1
     while i < e:
         b = src[i]
-        buf[d + i] = b
-        b = (b ^ crc) & 0xFF
-        b = (b ^ (b << 4)) & 0xFF
-        crc = ((crc >> 8) ^ (b << 8) ^ (b << 3) ^ (b >> 4)) & 0xFFFF
+        dst[i] = b
+        crc = (crc >> 8) ^ tbl[(crc ^ b) & 0xFF]
         i += 1
-    b = (buf[t] ^ crc) & 0xFF
-    b = (b ^ (b << 4)) & 0xFF
-    crc = ((crc >> 8) ^ (b << 8) ^ (b << 3) ^ (b >> 4)) & 0xFFFF
+    crc = (crc >> 8) ^ tbl[(crc ^ buf[t]) & 0xFF]
     if crc != (src[e] | src[e + 1] << 8):
         return more
     e = pos + n
     while i < e:
-        buf[d + i] = src[i]
+        dst[i] = src[i]
         i += 1
     if fast == 0 or signed:
         return -1 - (e << 2 | 2)
@@ -131,6 +144,14 @@ def scan(src: ptr8, pos: int, end: int, buf: ptr8) -> int:
     if i == IDS or ((buf[hdr] - buf[i + 3] - 1) & 0xFF):
         return -1 - (e << 2 | 2)
     buf[i + 3] = buf[hdr]
+    # Bit 0: the parser's version, payload and signed fields need setting (FIELDS says
+    # what the last fast frame left in them; Python clears it when it sets them).
     if hdr == 2:
-        return e << 1 | 1
-    return e << 1
+        if buf[FIELDS] == 1:
+            return e << 2 | 2
+        buf[FIELDS] = 1
+        return e << 2 | 3
+    if buf[FIELDS] == 2:
+        return e << 2
+    buf[FIELDS] = 2
+    return e << 2 | 1

@@ -16,7 +16,7 @@ frame split across chunks, a rejected candidate, ids >= 256) goes through the by
 state machine, so the results are the same either way.
 """
 from .compat import const
-from .kernels import crc16, find_stx, copy, zero, scan, SLOTS, IDS
+from .kernels import crc16, find_stx, copy, zero, scan, SLOTS, FIELDS, IDS
 
 STX_V1 = const(0xFE)
 STX_V2 = const(0xFD)
@@ -29,12 +29,11 @@ _SOURCES = const(8)  # senders tracked for sequence-gap loss figures
 
 
 class Parser:
-    # verify(buf, plen, signed) -> bool, set on an instance by a signing service: called
-    # with the frame still as on the wire (CRC in place); False drops it undelivered.
-    # A class attribute, so that parsers without one carry nothing extra.
-    verify = None
-
     def __init__(self, crc_len, on_frame):
+        # verify(buf, plen, signed) -> bool, set by a signing service: called with the
+        # frame still as on the wire (CRC in place); False drops it undelivered. Looked
+        # up on every frame: an instance attribute is found first.
+        self.verify = None
         self.crc_len = crc_len  # dialect.CRC_LEN: id -> crc_extra | len1 << 8 | len2 << 16
         self.on_frame = on_frame  # called as on_frame(msgid, payload)
         # The frame at [0:FRAME_MAX), then what kernels.scan reads and keeps: the sender
@@ -98,24 +97,27 @@ class Parser:
                 r = scan(data, pos, n if self.verify is None else -n, self.buf)
                 if r < 0:
                     break
-                pos = r >> 1
+                pos = r >> 2
                 buf = self.buf
-                if r & 1:
-                    self.version = 1
+                if r & 2:
+                    if r & 1:
+                        self.version = 1
+                        self.signed = False
+                        self.payload = self._payload_v1
                     self.seq = buf[2]
                     self.sysid = buf[3]
                     self.compid = buf[4]
                     r = buf[5]
-                    self.payload = self._payload_v1
                 else:
-                    self.version = 2
+                    if r & 1:
+                        self.version = 2
+                        self.signed = False
+                        self.payload = self._payload_v2
                     self.seq = buf[4]
                     self.sysid = buf[5]
                     self.compid = buf[6]
                     r = buf[7]
-                    self.payload = self._payload_v2
                 self.msgid = r
-                self.signed = False
                 self.frames += 1
                 self.on_frame(r, self.payload)
             else:
@@ -223,6 +225,7 @@ class Parser:
 
     def _deliver(self):
         buf = self.buf
+        buf[FIELDS] = 0  # the fields kernels.scan left are changed here
         plen = buf[1]
         if buf[0] == STX_V2:
             self.version = 2
