@@ -164,6 +164,7 @@ def main(argv):
             # A board resets in board.reset(); the unix vehicle (and a board without
             # reset()) restarts in place, after letting the old vehicle go: a small heap
             # holds one vehicle, not two.
+            stop(ep)
             ep.close()
             if hasattr(board, "reset"):
                 board.reset()
@@ -172,8 +173,17 @@ def main(argv):
             continue
         except (KeyboardInterrupt, Shutdown):
             pass
+        stop(ep)
         ep.close()
         return
+
+
+def stop(ep):
+    """Before a reboot or shutdown: services that keep something across it store it now
+    (signing: its timestamp, so that frames from before cannot be replayed after)."""
+    for svc in ep.services.values():
+        if hasattr(svc, "stop"):
+            svc.stop()
 
 
 if __name__ == "__main__":

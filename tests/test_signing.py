@@ -5,10 +5,11 @@ import hashlib
 import os
 import random
 import sys
+import time
 
 import pytest
 
-from conftest import ROOT, run_mpy
+from conftest import ROOT, recv, run_mpy
 
 TESTS_MPY = os.path.join(ROOT, "tests", "mpy")
 if TESTS_MPY not in sys.path:
@@ -25,6 +26,7 @@ EPOCH_2015_US = 1420070400000000
 
 SHA_SCRIPT = """
 import sys
+import time
 from binascii import hexlify, unhexlify
 from mavstack.services.sha256 import Sha256, SHA256_IMPL
 h = Sha256()
@@ -287,14 +289,97 @@ def test_key_persists_across_restart_and_timestamp_moves_on(tmp_path):
     assert len(raw) == 42 and raw[:32] == KEY
     b2, svc2 = bench(st)
     assert svc2.enabled
-    # A new stream must be no more than a minute behind the vehicle's timestamp.
+    # A new stream must start above what the vehicle stored: a ground station going on
+    # from the vehicle's last timestamp is refused until it has heard the vehicle, whose
+    # timestamps go on from there.
     g2 = Gcs(b2, key=KEY, timestamp=last)
     g2.send(g2.mav.ping_encode(1, 1, 0, 0))
     g2.run(1100)
-    msgs = g2.received()
-    assert "PING" in {m.get_type() for m in msgs}
-    assert g2.mav.signing.badsig_count == 0 and g2.mav.signing.goodsig_count == len(msgs)
+    msgs = g2.received()  # (pymavlink takes the vehicle's timestamp: it is ahead)
+    assert "PING" not in {m.get_type() for m in msgs} and svc2.replayed == 1
+    assert g2.mav.signing.badsig_count == 0 and g2.mav.signing.goodsig_count == len(msgs) > 0
     assert min(t for lid, t in g2.sig) > last
+    g2.send(g2.mav.ping_encode(2, 2, 0, 0))
+    g2.run(2)
+    assert "PING" in {m.get_type() for m in g2.received()}
+
+
+def stored(st):
+    return int.from_bytes((st / "signing_key").read_bytes()[32:38], "little")
+
+
+def test_stored_promise_floor_and_stop(tmp_path):
+    """What is stored covers every timestamp accepted or sent (a frame ahead of it is
+    stored before it goes on); after a restart a new stream must start above it; stop()
+    stores the timestamp itself."""
+    st = tmp_path / "st"
+    b, svc = bench(st, board=type("B", (), {"NAME": "bench", "SIGNING_SAVE_MS": 5000}))
+    g = Gcs(b)
+    setup_signing(g, initial=10**9)
+    ts = int.from_bytes(bytes(svc.ts), "little")
+    assert 10**9 + 2 * 5000 * 100 <= stored(st) <= ts + 2 * 5000 * 100  # two save intervals ahead
+    # A ground station ahead of the promise: stored before the frame is dispatched.
+    seen = delivered(b)
+    g.use_key(KEY, link_id=1, timestamp=ts + 3 * 5000 * 100)
+    f = g.send(g.mav.ping_encode(1, 1, 0, 0))
+    g.run(1)
+    assert seen == [4] and stored(st) >= ts + 3 * 5000 * 100 + 5000 * 100
+    promise = stored(st)
+    # Power lost: after the restart, that frame (or anything at or below the promise) on a
+    # new stream is refused; above it, accepted. Our timestamp goes on above it.
+    b2, svc2 = bench(st)
+    seen = delivered(b2)
+    b2.send_raw(f)
+    g2 = Gcs(b2, key=KEY, link_id=2, timestamp=promise)
+    g2.send(g2.mav.ping_encode(2, 2, 0, 0))
+    b2.run(2)
+    assert seen == [] and svc2.replayed == 2
+    g3 = Gcs(b2, key=KEY, link_id=3, timestamp=promise + 1)
+    g3.send(g3.mav.ping_encode(3, 3, 0, 0))
+    g3.run(2)
+    assert seen == [4] and min(t for lid, t in g3.sig) > promise
+    # A commanded reboot stores the timestamp itself: a station going on is in at once.
+    g3.received()  # it has heard the vehicle up to its last frame
+    svc2.stop()
+    assert stored(st) == int.from_bytes(bytes(svc2.ts), "little")
+    b3, svc3 = bench(st)
+    seen = delivered(b3)
+    g3.b = b3
+    g3.send(g3.mav.ping_encode(4, 4, 0, 0))  # (pymavlink's next is the vehicle's last itself)
+    g3.send(g3.mav.ping_encode(5, 5, 0, 0))
+    b3.run(2)
+    assert seen == [4] and svc3.replayed <= 1
+
+
+def test_frames_far_ahead_refused_once_the_time_of_day_is_known(tmp_path):
+    b, svc = bench(tmp_path / "st")
+    g = Gcs(b)
+    setup_signing(g)
+    seen = delivered(b)
+    # No time of day: the vehicle cannot tell a clock ahead from a right one (the spec's rule).
+    early = Gcs(b, key=KEY, link_id=1, timestamp=5 * 10**9)
+    early.send(early.mav.ping_encode(1, 1, 0, 0))
+    b.run(2)
+    assert seen == [4] and svc.future == 0
+    usec = 1767225600000000  # 2026-01-01
+    b2, svc2 = bench(tmp_path / "st2")
+    b2.ep.services["status"].set_clock(usec)
+    g = Gcs(b2)
+    setup_signing(g)
+    seen = delivered(b2)
+    now = (usec - EPOCH_2015_US) // 10
+    ahead = Gcs(b2, key=KEY, link_id=1, timestamp=now + 86400 * 100000)
+    ahead.send(ahead.mav.ping_encode(1, 1, 0, 0))
+    near = Gcs(b2, key=KEY, link_id=2, timestamp=now + 50 * 100000)  # 50 s ahead: taken
+    near.send(near.mav.ping_encode(2, 2, 0, 0))
+    b2.run(2)
+    assert seen == [4] and svc2.future == 1
+    ts = int.from_bytes(bytes(svc2.ts), "little")
+    assert now + 50 * 100000 <= ts < now + 51 * 100000
+    wall = Gcs(b2, key=KEY, link_id=3, timestamp=now + 100)  # from the wall clock: in
+    wall.send(wall.mav.ping_encode(3, 3, 0, 0))
+    b2.run(2)
+    assert seen == [4, 4]
 
 
 def test_corrupt_key_file_disables_signing_with_statustext(tmp_path):
@@ -401,8 +486,8 @@ def test_timestamp_bytes_arithmetic_matches_ints():
 
 @pytest.mark.parametrize("portable", [False, True], ids=["mpy-viper", "mpy-portable"])
 def test_signed_traffic_allocates_nothing(monkeypatch, portable):
-    """signing_steady.py: wall-clock timestamps on two links, tampered, replayed, too old
-    and unsigned frames, everything sent signed; the service's own paths (own=0) and the
+    """signing_steady.py: wall-clock timestamps on two links, tampered, replayed, too old,
+    a day ahead and unsigned frames, everything sent signed; the service's own paths (own=0) and the
     whole steady state (requested=0) ask the heap for nothing (harness.heap_requests),
     and N frames run under heap_lock."""
     if portable:
@@ -421,10 +506,175 @@ def test_signed_traffic_allocates_nothing(monkeypatch, portable):
     k = n // 100
     # Verified; and dropped: tampered, replayed (an old frame, or a new stream too far
     # behind), unsigned.
-    assert [int(f[x]) for x in ("accepted", "bad", "replayed", "unsigned")] == [n, k, 2 * k, k]
+    assert [int(f[x]) for x in ("accepted", "bad", "replayed", "unsigned", "future")] == [n, k, 2 * k, k, k]
     assert int(f["pings"]) == n  # every PING answered, signed
     assert int(f["out"]) >= n and f["bad_out"] == "0"
     assert f["own"] == "0" and f["locked"] == "ok" and f["saved"] == "1"
     # The whole steady state (parser, encoder, endpoint, status), storage_ram's save and
     # the copy kernel asked the heap for nothing either.
     assert (f["requested"], f["ram_save"], f["copy"]) == ("0", "0", "0"), line
+
+
+# --- end to end: the unix vehicle with signing, restarted ---------------------------
+
+SIGNED_BOARD = '''"""The unix vehicle with message signing (a test's board)."""
+from unix import *  # noqa: F401,F403
+import unix
+
+NAME = "unix_signed"
+SERVICES = ("signing",) + unix.SERVICES
+'''
+UNITS_PER_S = 100000  # signing timestamps: 10 us units
+
+
+def wall_units():
+    return int((time.time() - EPOCH_2015_US / 1e6) * UNITS_PER_S)
+
+
+def signed_vehicle(vehicle, tmp_path, *args):
+    """The unix vehicle (simulator, parameters, missions) with the signing service; its
+    clock is the host's time of day."""
+    from conftest import FIRMWARE
+
+    boards = tmp_path / "boards"
+    boards.mkdir(exist_ok=True)
+    (boards / "unix_signed.py").write_text(SIGNED_BOARD)
+    path = os.pathsep.join([str(boards), FIRMWARE, os.path.join(ROOT, "boards"), ".frozen"])
+    return vehicle(board="unix_signed", env={"MICROPYPATH": path}, args=list(args))
+
+
+def keyed(v, link_id, initial=None, port=None):
+    """A ground station holding KEY, pymavlink's own way (its timestamps take the
+    vehicle's when those are ahead)."""
+    m = v.gcs(port=port)
+    m.setup_signing(KEY, sign_outgoing=True, link_id=link_id, initial_timestamp=initial)
+    return m
+
+
+class WallClock:
+    """A ground station that stamps from its wall clock (one up per frame when sent
+    faster), whatever the vehicle's timestamps say."""
+
+    def __init__(self, m):
+        self.m = m
+        self.next = 0
+
+    def send(self, msg):
+        s = self.m.mav.signing
+        s.timestamp = max(wall_units(), self.next)
+        self.m.mav.send(msg)
+        self.next = s.timestamp
+
+    def ask(self, msgid, timeout=3.0):
+        """REQUEST_MESSAGE msgid, sent again each second -> the ACK's result or None."""
+        deadline = time.time() + timeout
+        while time.time() < deadline:
+            self.send(self.m.mav.command_long_encode(1, 1, 512, 0, msgid, 0, 0, 0, 0, 0, 0))
+            a = recv(self.m, "COMMAND_ACK", 1.0, lambda a: a.command == 512)
+            if a is not None:
+                return a.result
+        return None
+
+
+def switch_signing_on(m):
+    m.mav.setup_signing_send(1, 1, KEY, wall_units())  # unsigned: the vehicle has no key yet
+    m.setup_signing(KEY, sign_outgoing=True, link_id=0)
+    assert recv(m, "STATUSTEXT", 5, lambda t: "Signing on" in t.text) is not None
+
+
+def capture(m, msg):
+    """Send msg signed and return its bytes: what someone listening on the link keeps."""
+    buf = bytes(msg.pack(m.mav))
+    m.mav.seq = (m.mav.seq + 1) & 0xFF
+    m.write(buf)
+    return buf
+
+
+def read_param(m, name, timeout=10.0):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        m.mav.param_request_read_send(1, 1, name.encode(), -1)
+        p = recv(m, "PARAM_VALUE", 0.5, lambda p: p.param_id == name)
+        if p is not None:
+            return p.param_value
+    return None
+
+
+def armed(m, seconds=1.5):
+    """Any vehicle HEARTBEAT armed within seconds?"""
+    deadline = time.time() + seconds
+    seen = False
+    while time.time() < deadline:
+        hb = recv(m, "HEARTBEAT", 0.3, lambda h: h.get_srcSystem() == 1)
+        seen = seen or (hb is not None and bool(hb.base_mode & 128))
+    return seen
+
+
+def captured_arm_and_param_set(m):
+    """A signed ARM and PARAM_SET SIM_SPEED=9 that the vehicle carried out (then undone,
+    and the parameters saved), as an eavesdropper would have kept them."""
+    arm = capture(m, m.mav.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0))
+    assert recv(m, "COMMAND_ACK", 5, lambda a: a.command == 400).result == 0
+    param = capture(m, m.mav.param_set_encode(1, 1, b"SIM_SPEED", 9.0, 9))
+    assert recv(m, "PARAM_VALUE", 5, lambda p: p.param_id == "SIM_SPEED" and p.param_value == 9.0)
+    m.mav.command_long_send(1, 1, 400, 0, 0, 0, 0, 0, 0, 0, 0)
+    assert recv(m, "COMMAND_ACK", 5, lambda a: a.command == 400).result == 0
+    m.mav.param_set_send(1, 1, b"SIM_SPEED", 5.0, 9)
+    assert recv(m, "PARAM_VALUE", 5, lambda p: p.param_id == "SIM_SPEED" and p.param_value == 5.0)
+    m.mav.command_long_send(1, 1, 245, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert recv(m, "COMMAND_ACK", 5, lambda a: a.command == 245).result == 0
+    return arm, param
+
+
+def replayed_took_effect(watcher, frames):
+    """Replay frames from an eavesdropper's socket -> what each did: (armed, SIM_SPEED 9)."""
+    for f in frames:
+        watcher.write(f)
+    nine = recv(watcher, "PARAM_VALUE", 1.5, lambda p: p.param_id == "SIM_SPEED" and p.param_value == 9.0)
+    return armed(watcher), nine is not None
+
+
+def test_frames_captured_before_a_restart_are_refused_after_it(vehicle, tmp_path):
+    """A signed ARM and PARAM_SET kept by an eavesdropper and replayed after the vehicle
+    restarts, from power loss (kill -9) and from a commanded reboot: refused, 4 of 4; the
+    ground station that holds the key goes on."""
+    v = signed_vehicle(vehicle, tmp_path)
+    m = v.gcs()
+    switch_signing_on(m)
+    frames = captured_arm_and_param_set(m)
+    v.kill()  # power lost, a few seconds after the key was saved
+    v = signed_vehicle(vehicle, tmp_path)
+    watcher = v.gcs(source_system=250)  # unsigned heartbeats: let through, change nothing
+    assert replayed_took_effect(watcher, frames) == (False, False)
+    m = keyed(v, link_id=1)
+    assert read_param(m, "SIM_SPEED") == 5.0
+    frames = captured_arm_and_param_set(m)
+    m.mav.command_long_send(1, 1, 246, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert recv(m, "COMMAND_ACK", 5, lambda a: a.command == 246).result == 0
+    assert recv(m, "STATUSTEXT", 5, lambda t: "Rebooting" in t.text) is not None
+    time.sleep(1.5)  # restarted in place
+    assert replayed_took_effect(watcher, frames) == (False, False)
+    assert read_param(m, "SIM_SPEED") == 5.0
+    assert v.proc.poll() is None
+
+
+def test_future_stamped_frame_does_not_lock_out_a_wall_clock_gcs(vehicle, tmp_path):
+    """A key holder whose clock is a day ahead is refused by a vehicle that knows the time
+    of day; a ground station stamping from the wall clock keeps working, before and after
+    a commanded reboot."""
+    v = signed_vehicle(vehicle, tmp_path)
+    m = v.gcs()
+    switch_signing_on(m)
+    time.sleep(1.5)  # the vehicle's signing clock has taken the time of day
+    ahead = keyed(v, link_id=7, initial=wall_units() + 86400 * UNITS_PER_S)
+    ahead.mav.command_long_send(1, 1, 512, 0, 2, 0, 0, 0, 0, 0, 0)
+    ahead.mav.command_long_send(1, 1, 512, 0, 2, 0, 0, 0, 0, 0, 0)
+    assert recv(ahead, "COMMAND_ACK", 1.5, lambda a: a.command == 512) is None
+    gcs = WallClock(keyed(v, link_id=8))
+    assert gcs.ask(2) == 0
+    assert WallClock(keyed(v, link_id=9)).ask(2) == 0  # a new stream, from the wall clock
+    m.mav.command_long_send(1, 1, 246, 0, 1, 0, 0, 0, 0, 0, 0)
+    assert recv(m, "COMMAND_ACK", 5, lambda a: a.command == 246).result == 0
+    time.sleep(1.5)
+    assert WallClock(keyed(v, link_id=10)).ask(2, timeout=5) == 0
+    assert gcs.ask(2) == 0

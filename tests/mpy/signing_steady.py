@@ -1,9 +1,9 @@
 """Signed traffic in steady state, with real-world timestamps (48-bit, units of 10 us
 since 2015: always past 2^30). Two pymavlink-like signers (link ids 0 and 1, timestamps
 from the time of day, one up per frame) send PINGs the vehicle must verify; tampered,
-replayed, too-old and unsigned frames it must drop; it signs everything it sends, which
-the bench checks (signature, timestamps rising and past 2^32). The vehicle's clock runs
-from the time of day.
+replayed, too-old, a day ahead and unsigned frames it must drop; it signs everything it
+sends, which the bench checks (signature, timestamps rising and past 2^32). The vehicle's
+clock runs from the time of day.
 
 First harness.heap_requests() (mem_total unlocked, then heap_lock) on the signing
 service's own paths (verify, replay rejection, sign, clock tick with time-of-day sync, a
@@ -13,8 +13,8 @@ heap_unlock().
 
     signing_steady.py N [LOCK]
 
-Prints `ok impl=viper|portable accepted=N bad=K replayed=2K unsigned=K pings=N out=M
-bad_out=0 own=0 requested=B ram_save=B copy=B locked=ok saved=1 ms=T` (K = N / 100:
+Prints `ok impl=viper|portable accepted=N bad=K replayed=2K unsigned=K pings=N future=K
+out=M bad_out=0 own=0 requested=B ram_save=B copy=B locked=ok saved=1 ms=T` (K = N / 100:
 tampered, replayed old frames and too old new streams, unsigned; out: vehicle frames
 checked good), or `fail` and the same fields. own: bytes the service's own paths asked
 of the heap, which must be 0; requested: the whole steady state's per 100 frames
@@ -135,8 +135,10 @@ class Traffic:
         b.ep.services["status"].set_clock(UNIX_USEC)
         self.svc.set_key(KEY)
         self.streams = (Station(b, 0, GCS_TS), Station(b, 1, GCS_TS + 5000))
-        # A third link's frame two minutes behind the vehicle: a new stream too far back.
+        # A third link's frame two minutes behind the vehicle: a new stream too far back;
+        # a fourth's a day ahead of the vehicle's time of day: refused, not taken.
         self.stale = Station(b, 2, GCS_TS - 12000000).next()
+        self.ahead = Station(b, 3, GCS_TS + 8640000000).next()
         first = self.streams[0].next()
         self.replay = bytearray(first)  # accepted once below, replayed from then on
         self.tampered = bytearray(len(first))
@@ -157,6 +159,7 @@ class Traffic:
         b.send_raw(t, len(t))
         b.send_raw(self.replay, len(self.replay))
         b.send_raw(self.stale, len(self.stale))
+        b.send_raw(self.ahead, len(self.ahead))
         b.send_raw(self.unsigned, len(self.unsigned))
 
     def steady(self, n):
@@ -181,6 +184,7 @@ class Traffic:
         self._verify(self.streams[1].next(), True)
         self._verify(self.replay, True)
         self._verify(self.stale, True)
+        self._verify(self.ahead, True)
         self._verify(self.unsigned, False)
         out = self.out
         _copy(out, self.unsigned, len(self.unsigned))
@@ -254,7 +258,7 @@ def main(n, lock):
     requested = heap_requests(t.stretch)
     ram_save = t.save_to(t.b.ep.storage)
     saved = t.b.ep.storage.exists("signing_key")
-    svc.accepted = svc.bad_signature = svc.replayed = svc.unsigned = 0
+    svc.accepted = svc.bad_signature = svc.replayed = svc.future = svc.unsigned = 0
     pings = t.b.seen[_PING]
     t.check.good = t.check.bad = 0
     start = ticks_ms()
@@ -269,12 +273,12 @@ def main(n, lock):
         micropython.heap_unlock()
     ms = ticks_diff(ticks_ms(), start)
     k = n // 100
-    got = (svc.accepted, svc.bad_signature, svc.replayed, svc.unsigned, t.b.seen[_PING] - pings)
-    good = (locked == "ok" and own == 0 and saved and got == (n, k, 2 * k, k, n)
+    got = (svc.accepted, svc.bad_signature, svc.replayed, svc.unsigned, t.b.seen[_PING] - pings, svc.future)
+    good = (locked == "ok" and own == 0 and saved and got == (n, k, 2 * k, k, n, k)
             and t.check.good >= n and t.check.bad == 0)
-    print("%s impl=%s accepted=%d bad=%d replayed=%d unsigned=%d pings=%d out=%d bad_out=%d "
+    print("%s impl=%s accepted=%d bad=%d replayed=%d unsigned=%d pings=%d future=%d out=%d bad_out=%d "
           "own=%s requested=%d ram_save=%s copy=%d locked=%s saved=%d ms=%d" % (
-              "ok" if good else "fail", SHA256_IMPL, got[0], got[1], got[2], got[3], got[4],
+              "ok" if good else "fail", SHA256_IMPL, got[0], got[1], got[2], got[3], got[4], got[5],
               t.check.good, t.check.bad, own, requested, ram_save, copy_heap, locked, saved, ms))
 
 

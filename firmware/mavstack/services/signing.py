@@ -13,25 +13,49 @@ Board settings:
     SIGNING_SETUP_LINKS     None: SETUP_SIGNING accepted on any link; else a tuple of
                             link indices (the links a key may be given on, e.g. USB)
     SIGNING_ALLOW_UNSIGNED  message ids accepted unsigned, default (0,) (HEARTBEAT)
-    SIGNING_SAVE_MS         how often the timestamp is saved while signing (60000)
+    SIGNING_SAVE_MS         how often the timestamp is saved while signing (60000, at
+                            least 1000)
+    SIGNING_MAX_AHEAD_MS    with the time of day known, frames stamped further ahead of
+                            our timestamp are refused (60000, at most 5 minutes)
 
-The key persists in storage file "signing_key": key (32), timestamp (8, little-endian),
-CRC-16 of both (2). A corrupt file leaves signing off and says so in a STATUSTEXT.
+The key persists in storage file "signing_key": key (32), timestamp (8, little-endian:
+the promise below), CRC-16 of both (2). A corrupt file leaves signing off and says so in a STATUSTEXT.
 List "signing" before "status" in SERVICES: then the boot HEARTBEAT is signed too.
 
 Timestamps (units of 10 us since 2015-01-01, so always past 2^30) are 48-bit and kept
 as 6 little-endian bytes, as on the wire: compared by 24-bit halves and advanced
 bytewise, never made into an int (on a 32-bit port an int of 2^30 or more is a heap
 object). Verifying and signing frames and the clock allocate nothing, nor does a save
-beyond what the storage's own open and write take. The
-timestamp sent rises by one per frame and follows the clock: the endpoint clock's time
-of day when known (re-read every 10 s), else the stored timestamp plus uptime. After a
-restart it resumes a whole save interval ahead of the stored one, so it never goes
-backwards.
+beyond what the storage's own open and write take. The timestamp sent rises by one per
+frame and follows the clock: the endpoint clock's time of day when known (re-read every
+10 s), else the stored timestamp plus uptime; it also takes any accepted frame's that is
+ahead of it, as the signing spec asks.
 
-Counters: accepted, bad_signature, replayed, unsigned (frames dropped per reason).
+Replays across a restart. The stream table is lost with the RAM, so what is stored is a
+promise: no timestamp above it was accepted or sent. It is renewed a save interval
+ahead of need (stored = timestamp + 2 intervals, saved again once the timestamp is within
+an interval of it); a frame accepted above it (a ground station ahead of us) is saved
+before it is let through. A commanded reboot or shutdown stores the timestamp itself
+(stop(), called by main.py), so that ground stations go on at once. At boot the stored
+value becomes both our timestamp and a floor: a newly heard stream's first frame must
+be newer than it (and, as the spec says, no more than a minute behind our timestamp).
+So no frame accepted before a restart, or older than one, is accepted after it. After a
+power loss the floor may be up to two intervals ahead of the wall clock: ground stations
+that take the vehicle's timestamp when it is ahead (the spec's rule; pymavlink and the
+MAVLink C library do) are in again with the first signed frame they hear from it.
+
+Frames from the future. Once the vehicle knows the time of day, a frame stamped more
+than a minute (SIGNING_MAX_AHEAD_MS) ahead of our timestamp (which is at least the time
+of day) is refused (counter `future`): taken, it would move our timestamp and the floor
+it becomes after a restart so far ahead that every ground station stamping from the wall
+clock would be refused as a stream "more than a minute behind" (the spec's new-stream
+rule), and accepted without being taken, it would be replayable after a restart. A
+ground station within the minute is taken as the spec says. Without a time of day the
+vehicle cannot tell a clock that is ahead from one that is right, and follows the spec.
+
+Counters: accepted, bad_signature, replayed, future, unsigned (frames dropped per reason).
 """
-from ..compat import const, ticks_diff
+from ..compat import const, ticks_add, ticks_diff
 from ..kernels import copy, crc16
 from ..parser import HEADER_V2, SIGNATURE_LEN
 from ..storage import checksum
@@ -46,6 +70,7 @@ _STREAMS = const(16)  # (sysid, compid, link id) streams whose last timestamp is
 _NEW_STREAM_SLACK = const(6000000)  # a new stream may start up to a minute behind us
 _CLOCK_MS = const(1000)  # follow uptime this often
 _SYNC_MS = const(10000)  # re-read the time of day this often
+_AHEAD_LIMIT_MS = const(300000)  # SIGNING_MAX_AHEAD_MS at most (as units, below 2^29)
 _EPOCH_2015 = b"\x00\x80\xbf\xe7\x8b\x0b\x05\x00"  # 1420070400000000 us, little-endian
 
 
@@ -69,13 +94,20 @@ class Signing:
 
     # Per-frame methods are split small: a MicroPython function whose locals and value
     # stack pass 11 words gets its frame from the heap.
-    def __init__(self, setup_links=None, allow_unsigned=(0,), save_ms=60000):
+    def __init__(self, setup_links=None, allow_unsigned=(0,), save_ms=60000, max_ahead_ms=60000):
         self.setup_links = setup_links
         self.allow_unsigned = tuple(allow_unsigned) + (_MSG_RADIO_STATUS,)
-        self.save_ms = save_ms
+        # The stored promise is renewed this often: a save interval of 0 (never) would
+        # leave nothing to tell, after a restart, what was accepted before it.
+        self.save_ms = max(save_ms, 1000)
+        self._ahead = min(max_ahead_ms, _AHEAD_LIMIT_MS) * 100  # in timestamp units
         self.key = bytearray(32)
         self.enabled = False
         self.ts = bytearray(6)  # our timestamp, last one sent
+        self._floor = bytearray(6)  # a new stream must start above it: the stored promise at boot
+        self._promise = bytearray(6)  # no timestamp above it accepted or sent (as stored)
+        self._due = bytearray(6)  # save again once our timestamp passes this
+        self._timed = False  # the clock is the time of day
         self._sig = Signature()
         self._keys = [-1] * _STREAMS  # sysid << 16 | compid << 8 | link id
         self._stamps = bytearray(6 * _STREAMS)  # their last timestamps
@@ -85,18 +117,19 @@ class Signing:
         self._file = bytearray(_FILE_LEN)
         self._clk_at = 0
         self._synced_at = 0
-        self._saved_at = 0
         self._hooks = []
         self._warning = None  # a STATUSTEXT from start-up, sent once services are up
         self.accepted = 0
         self.bad_signature = 0
         self.replayed = 0
+        self.future = 0
         self.unsigned = 0
 
     def attach(self, ep):
         self.ep = ep
         now = ep.now
-        self._clk_at = self._synced_at = self._saved_at = now
+        self._clk_at = now
+        self._synced_at = ticks_add(now, -_SYNC_MS)  # the first clock step reads the time of day
         for link in ep.links:
             h = _LinkSigner(self, link)
             # Bound methods made once, so switching signing on and off allocates nothing more.
@@ -113,6 +146,9 @@ class Signing:
         plen += HEADER_V2 + 2  # now the offset of the link id, then timestamp, then signature
         if not self._sig.matches(self.key, buf, plen + 7):
             self.bad_signature += 1
+            return False
+        if self._timed and self._too_far(buf, plen):
+            self.future += 1
             return False
         if not self._fresh(rx, buf, plen):
             self.replayed += 1
@@ -140,9 +176,18 @@ class Signing:
         self._keep(buf, s, i)
         return True
 
+    def _too_far(self, buf, s):
+        # Is the timestamp at buf[s+1:s+7] more than the allowed minute ahead of ours?
+        t = self._tmp
+        _plus(t, self.ts, 0, self._ahead)
+        return _later(buf, s + 1, t, 0)
+
     def _new_stream(self, key, buf, s):
         # A stream not seen (or forgotten) -> its offset in _stamps, or -1 if its
-        # timestamp is more than _NEW_STREAM_SLACK behind ours (an old frame replayed).
+        # timestamp is not above the floor (what the stored promise covered at boot) or
+        # more than _NEW_STREAM_SLACK behind ours: an old frame replayed.
+        if not _later(buf, s + 1, self._floor, 0):
+            return -1
         t = self._tmp
         _plus(t, buf, s + 1, _NEW_STREAM_SLACK)
         if _later(self.ts, 0, t, 0):
@@ -157,6 +202,8 @@ class Signing:
         copy(self._stamps, buf, i | s << 10, 6)
         if _later(buf, s, self.ts, 0):
             copy(self.ts, buf, s << 10, 6)
+            if _later(buf, s, self._promise, 0):
+                self._renew()  # (rare) stored before the frame goes any further
 
     def sign(self, buf, end, link_id):
         ts = self.ts
@@ -183,9 +230,8 @@ class Signing:
             self._sync()
         if _later(self._clk, 0, self.ts, 0):
             copy(self.ts, self._clk, 0, 6)
-        if self.save_ms and ticks_diff(now, self._saved_at) >= self.save_ms:
-            self._saved_at = now
-            self._save()
+        if _later(self.ts, 0, self._due, 0):
+            self._renew()
 
     def _sync(self):
         # The clock becomes the time of day, when that is known.
@@ -193,6 +239,26 @@ class Signing:
         self.ep.clock.stamp_unix(t, 0)  # unix us as bytes, zero while unknown
         if _since_2015(t):
             copy(self._clk, t, 0, 6)
+            self._timed = True
+
+    # --- the stored promise ------------------------------------------------------------
+    def _renew(self):
+        """Store a promise a save interval ahead of need: due = ts + interval, promise =
+        due + interval. (Rare: once an interval, or when a frame is ahead of it.)"""
+        copy(self._due, self.ts, 0, 6)
+        _advance(self._due, self.save_ms)
+        copy(self._promise, self._due, 0, 6)
+        _advance(self._promise, self.save_ms)
+        self._save()
+
+    def stop(self):
+        """The vehicle is about to reboot or shut down: store our timestamp itself, so
+        that after the restart a ground station going on from where it was is newer."""
+        if not self.enabled:
+            return
+        copy(self._promise, self.ts, 0, 6)
+        copy(self._due, self.ts, 0, 6)
+        self._save()
 
     # --- key ---------------------------------------------------------------------------
     def _on_setup(self, link, p):
@@ -206,7 +272,7 @@ class Signing:
         t = bytearray(6)
         copy(t, p, 0, 6)  # timestamps are 48-bit: the low 6 bytes of the u64
         self._use_key(p[10:42], t)
-        self._save()
+        self._renew()
         self.ep.statustext(NOTICE, b"Signing on" if self.enabled else b"Signing off")
 
     def set_key(self, key, timestamp=0):
@@ -226,6 +292,11 @@ class Signing:
         self._sync()
         if _later(self._clk, 0, self.ts, 0):
             copy(self.ts, self._clk, 0, 6)
+        # Saved by the caller (_renew) when storage should know; until then, in RAM.
+        copy(self._due, self.ts, 0, 6)
+        _advance(self._due, self.save_ms)
+        copy(self._promise, self._due, 0, 6)
+        _advance(self._promise, self.save_ms)
         for i in range(_STREAMS):
             self._keys[i] = -1
         self.enabled = any(self.key)
@@ -248,12 +319,13 @@ class Signing:
         if len(data) != _FILE_LEN or checksum(data[:40]) != data[40] | data[41] << 8:
             self._warning = b"Signing key corrupt: signing off"
             return
-        # Frames may have gone out up to a save interval past the stored timestamp;
-        # saved at once, so that a quick second restart starts past this one.
+        # The stored promise: nothing above it was accepted or sent before the restart.
+        # Our timestamp goes on from there, and a new stream must start above it.
         t = bytearray(data[32:38])
-        _advance(t, self.save_ms)
+        copy(self._floor, t, 0, 6)
         self._use_key(data[:32], t)
-        self._save()
+        copy(self._promise, t, 0, 6)  # what storage holds; renewed once ts passes it
+        copy(self._due, t, 0, 6)
 
     def _save(self):
         try:
@@ -265,9 +337,9 @@ class Signing:
         storage = getattr(self.ep, "storage", None)
         if storage is None:
             return
-        data = self._file  # key (32), timestamp (8, the top two bytes zero), CRC
+        data = self._file  # key (32), the promise (8, the top two bytes zero), CRC
         copy(data, self.key, 0, 32)
-        copy(data, self.ts, 32, 6)
+        copy(data, self._promise, 32, 6)
         crc = crc16(data, 0, 40, 0xFFFF)
         data[40] = crc & 0xFF
         data[41] = crc >> 8
@@ -340,4 +412,5 @@ def create(ep):
         setup_links=ep.setting("SIGNING_SETUP_LINKS"),
         allow_unsigned=ep.setting("SIGNING_ALLOW_UNSIGNED", (0,)),
         save_ms=ep.setting("SIGNING_SAVE_MS", 60000),
+        max_ahead_ms=ep.setting("SIGNING_MAX_AHEAD_MS", 60000),
     ))
