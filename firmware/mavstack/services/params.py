@@ -15,8 +15,14 @@ INT64 and REAL64 cannot travel and are refused at start-up. Integers travel byte
 (MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE, what QGroundControl and MAVSDK expect
 from a generic autopilot) or, with PARAM_ENCODING = "c_cast", converted to floats.
 
-A list goes out paced to half the link's capacity, so telemetry and commands keep
-flowing; lists, reads and their pacing allocate nothing. PARAM_SET is checked (type,
+A list goes out at the link budget's RANK_FILL (link.py): whatever HEARTBEAT, the
+answers to ground stations and the telemetry streams leave of the link, so they keep
+flowing and the list takes the rest. A list asked for again while it is going out
+continues (every value still owed is sent once, wrapping to the start) rather than
+starting over, so repeated requests, from one ground station or a flood of them,
+cost one list. A read or a PARAM_SET is answered at once; if the budget cannot pay
+for the answer then, it is owed ahead of the list and sent as soon as it can.
+Lists, reads and their pacing allocate nothing. PARAM_SET is checked (type,
 range, NaN, read-only, operator control) and always answered with the value in force;
 a refusal also gets a STATUSTEXT saying why, a change is sent on every link.
 Values persist in storage file "params": MAV_CMD_PREFLIGHT_STORAGE (param1 1 save,
@@ -35,7 +41,7 @@ hears changes made by ground stations, commands and reloads.
 from ..compat import const, ticks_diff
 from ..fields import i16, cstr_len
 from ..kernels import zero
-from ..link import TX_WRAP
+from ..link import RANK_REPLY, RANK_FILL, RANK_AUTO
 from .param_table import ParamTable, ID_LEN
 from .param_table import _copy4, _move, _put16  # byte moves whose frames fit the C stack
 from .param_table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32, READ_ONLY, REBOOT  # noqa: F401
@@ -62,10 +68,11 @@ _SEVERITY_INFO = const(6)
 _CAP_PARAM_ENCODE_BYTEWISE = const(16)
 _CAP_PARAM_ENCODE_C_CAST = const(131072)
 
-# Pacing: credit in thousandths of a byte; a link earns bytes_per_s / 2 of them a ms.
-_BURST = const(128000)  # at most ~3 frames banked
-_MAX_DT_MS = const(100)
-_MAX_PER_TICK = const(4)
+# Pacing: the link's budget decides; a tick sends at most this many values a link.
+_MAX_PER_TICK = const(8)
+_VALUE_FRAME = const(37)  # bytes of a MAVLink 2 PARAM_VALUE (unsigned), asked of the budget
+_OWED_LIST = const(1)  # _want: in a list, or a change to announce
+_OWED_ANSWER = const(2)  # _want: an answer the budget held back: goes first
 
 _FILE = "params"
 _AFTER_REBOOT = b" applies after reboot"
@@ -86,13 +93,12 @@ class Params(ParamTable):
         self.dirty = False  # changed since the last save or load
         self._changed_at = 0
         self.ep = None
-        # Per link: the PARAM_VALUEs it is owed (a byte a parameter), how many, where
-        # the scan resumes, its pacing credit and when that was last earned.
+        # Per link: the PARAM_VALUEs it is owed (a byte a parameter: _OWED_LIST or
+        # _OWED_ANSWER), how many, how many of them answers, where the list resumes.
         self._want = []
         self._pending = []
+        self._answers = []
         self._cursor = []
-        self._credit = []
-        self._last = []
         self._text = bytearray(_TEXT_LEN)  # "NAME applies after reboot", made in place
         self._data = self._image  # what _load read the file into
         self._guard = _Guard()
@@ -120,9 +126,8 @@ class Params(ParamTable):
         while len(self._want) <= link.index:
             self._want.append(bytearray(self.count))
             self._pending.append(0)
+            self._answers.append(0)
             self._cursor.append(0)
-            self._credit.append(_BURST)
-            self._last.append(self.ep.now)
 
     # --- sending, paced ------------------------------------------------------------
     def tick(self, now):
@@ -135,52 +140,46 @@ class Params(ParamTable):
 
     # (Small functions: MicroPython puts a frame with many locals on the heap.)
     def _pace(self, li, link, now):
-        self._credit[li] = self._earn(li, link, now)
         sent = 0
-        while self._credit[li] > 0 and sent < _MAX_PER_TICK and self._pending[li]:
+        while sent < _MAX_PER_TICK and self._pending[li]:
             if not self._send_next(li, link):
-                break  # the transport is full: a later tick retries
+                break  # the budget (or the transport) cannot take it now: a later tick
             sent += 1
 
-    def _earn(self, li, link, now):
-        """Link li's credit after the time since it last earned."""
-        dt = ticks_diff(now, self._last[li])
-        self._last[li] = now
-        rate = link.bytes_per_s >> 1 if link.bytes_per_s else 0
-        if rate == 0:
-            return _BURST
-        credit = self._credit[li]
-        if dt > 0:
-            credit += (dt if dt < _MAX_DT_MS else _MAX_DT_MS) * rate
-            if credit > _BURST:
-                credit = _BURST
-        return credit
-
     def _send_next(self, li, link):
-        """Send the next value link li is owed, charged to its credit -> sent."""
-        i = self._owed(li)
-        self._cursor[li] = i
-        before = link.tx_bytes
-        if not self._send(link, i):
+        """Send the next value link li is owed, if its budget pays for it -> sent."""
+        answer = self._answers[li] != 0
+        rank = RANK_REPLY if answer else RANK_FILL
+        if not link.can_send(_VALUE_FRAME, rank):
             return False
+        i = self._owed(li, answer)
+        link.rank = rank
+        ok = self._send(link, i)
+        link.rank = RANK_AUTO
+        if not ok:
+            return False
+        if self._want[li][i] == _OWED_ANSWER:
+            self._answers[li] -= 1
         self._want[li][i] = 0
         self._pending[li] -= 1
-        self._cursor[li] = i + 1
-        self._credit[li] -= ((link.tx_bytes - before) & TX_WRAP) * 1000  # the counter wraps
+        if not answer:
+            self._cursor[li] = i + 1
         return True
 
-    def _owed(self, li):
-        """The next index link li is owed at or after its cursor, wrapping: a list goes
-        in order."""
+    def _owed(self, li, answer):
+        """The next index link li is owed: an answer (from the start), else the list's
+        next at or after its cursor, wrapping (a list goes in order)."""
         want = self._want[li]
         n = self.count
-        i = self._cursor[li]
-        for _ in range(n):
+        i = 0 if answer else self._cursor[li]
+        k = n
+        while k:
             if i >= n:
                 i = 0
-            if want[i]:
+            if want[i] == _OWED_ANSWER or (want[i] and not answer):
                 break
             i += 1
+            k -= 1
         return i
 
     def _send(self, link, i):
@@ -196,13 +195,17 @@ class Params(ParamTable):
         buf[off + 24] = self._types[i]
 
     def _reply(self, link, i):
-        """Send at once (an answer), charged to the link's pacing credit."""
+        """Answer at once (ranked by its asker: link.py); owed, ahead of any list, when
+        the budget cannot pay for it now."""
         self._link_state(link)
-        li = link.index
-        before = link.tx_bytes
-        self._send(link, i)
-        credit = self._credit[li] - ((link.tx_bytes - before) & TX_WRAP) * 1000
-        self._credit[li] = credit if credit > -_BURST else -_BURST
+        if self._send(link, i):
+            return
+        want = self._want[link.index]
+        if want[i] != _OWED_ANSWER:
+            if not want[i]:
+                self._pending[link.index] += 1
+            want[i] = _OWED_ANSWER
+            self._answers[link.index] += 1
 
     def _announce(self, i, skip=None):
         """Owe parameter i to every link but skip, paced like a list."""
@@ -224,11 +227,13 @@ class Params(ParamTable):
             return
         self._link_state(link)
         li = link.index
+        if not self._pending[li]:
+            self._cursor[li] = 0  # a new list; one going out continues (see the note)
         want = self._want[li]
         for i in range(self.count):
-            want[i] = 1
+            if not want[i]:
+                want[i] = _OWED_LIST
         self._pending[li] = self.count
-        self._cursor[li] = 0  # a new request starts over
 
     def _on_read(self, link, p):
         if not self.ep.for_us(p[2], p[3]):

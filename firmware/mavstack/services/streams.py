@@ -29,19 +29,19 @@ moves on by the interval (kept in microseconds, remainder carried), not from
 message on the next tick; one that fell a whole interval behind (a stall) lets the
 missed ones go instead of bursting. New streams start at staggered phases.
 
-Bandwidth: each link has link.bytes_per_s. A credit (token bucket) is filled at
-that rate and drained by every byte the link sends, scheduled or not, so
-priority traffic (HEARTBEAT, COMMAND_ACK, PARAM_VALUE, mission replies, sent by
-their services outside the scheduler) goes first and the total never exceeds the
-budget. Once a second the streams are fitted to what is left: when requests
-exceed it, every interval is stretched by the same factor (each message keeps the
-same share of what it asked for), and that achieved interval is what
-MESSAGE_INTERVAL reports. A link that cannot take a frame (link.send False) is
-left until the next tick; the loop never waits.
+Bandwidth: each link has a byte budget (link.py) that every send pays from.
+Streams go at RANK_BULK: after HEARTBEAT and the answers to ground stations,
+ahead of parameter lists and floods. A due stream goes when the link can pay
+for it at that rank (link.can_send) and otherwise stays due for a later tick,
+so the loop never waits. Once a second the streams are fitted to what the
+answers left (bytes sent outside the scheduler, less lists and floods, which
+yield to streams anyway): when requests exceed it, every interval is stretched
+by the same factor (each message keeps the same share of what it asked for),
+and that achieved interval is what MESSAGE_INTERVAL reports.
 """
 from struct import pack_into
 
-from ..link import TX_WRAP
+from ..link import TX_WRAP, RANK_BULK, RANK_OTHER, RANK_AUTO
 from ..compat import const, ticks_diff, ticks_add
 from ..fields import u16
 from .telemetry import Telemetry
@@ -56,8 +56,6 @@ _ACCEPTED = const(0)
 _DENIED = const(2)
 
 _RESCALE_MS = const(1000)  # how often streams are fitted to the measured budget
-_BURST_MS = const(50)  # credit a quiet link may save up, in ms of its capacity
-_MIN_BURST = const(300)  # bytes: a full MAVLink 2 frame always fits
 _MARGIN_DIV = const(20)  # keep 1/20 of the budget for priority bursts
 _FLOOR_DIV = const(10)  # streams keep at least 1/10 of the budget in the fit
 _DEMAND_MAX = const(0x20000)  # B/s: demand << 12 stays below 2^30 (_stretch)
@@ -125,18 +123,17 @@ def _stretch(interval_us, demand, avail):
 
 
 class LinkStreams:
-    """The streams of one link and its bandwidth account."""
+    """The streams of one link and what its answers took of its budget."""
 
     def __init__(self, link, now):
         self.link = link
         self.streams = []
         self.by_id = {}
-        self.credit = 0  # in 1/1000 bytes
-        self.last = now
-        self.last_tx = link.tx_bytes
+        self.now = now  # this tick's
         self.start = 0  # first stream looked at next tick (rotates, for fairness)
         self.win_start = now  # window over which priority traffic is measured
         self.win_tx = link.tx_bytes
+        self.win_low = link.tx_low
         self.win_stream = 0
         self.priority_bps = 0
 
@@ -296,7 +293,9 @@ class Streams:
         pack_into("<H", link.txbuf, off, rate)
         link.txbuf[off + 2] = p[4]
         link.txbuf[off + 3] = 1 if rate else 0
+        link.rank = RANK_OTHER  # a cheap one-off: dropped when only floods' share is left
         link.send(_MSG_DATA_STREAM)
+        link.rank = RANK_AUTO
 
     def _set_group(self, link, stream_id, rate):
         """The messages of a group this endpoint produces at rate Hz (0: off) -> False if
@@ -332,11 +331,13 @@ class Streams:
         """Bytes per second the link sent outside the scheduler since the last look."""
         span = ticks_diff(now, ls.win_start)
         tx = ls.link.tx_bytes
+        low = ls.link.tx_low  # lists and floods: they yield to streams, so they do not count
         if span > 0:
-            other = ((tx - ls.win_tx) & TX_WRAP) - ls.win_stream
+            other = ((tx - ls.win_tx) & TX_WRAP) - ((low - ls.win_low) & TX_WRAP) - ls.win_stream
             ls.priority_bps = (other if other > 0 else 0) * 1000 // span
         ls.win_start = now
         ls.win_tx = tx
+        ls.win_low = low
         ls.win_stream = 0
 
     def _fit(self, ls):
@@ -373,11 +374,12 @@ class Streams:
 # The per-tick path as plain functions (no self: one local fewer, so the loop keeps its
 # streams and their count in locals and still fits).
 def _run(ls, now):
-    """Send what is due on one link, from ls.start on, while its credit lasts."""
-    if not _refill(ls, now):
-        return
+    """Send what is due on one link, from ls.start on, while its budget lasts."""
     streams = ls.streams
     n = len(streams)
+    if n == 0:
+        return
+    ls.now = now
     i = ls.start
     ls.start = i + 1 if i + 1 < n else 0
     k = n
@@ -392,40 +394,27 @@ def _run(ls, now):
             if late < -2 * s.step_ms - 2:  # the clock jumped back: start again
                 s.due = now
             continue
-        if not _send(ls, s) or ls.credit <= 0:
+        if not _send(ls, s):
             return
 
 
-def _refill(ls, now):
-    """The link's credit, topped up for the time since the last tick and drained by
-    everything it sent since -> whether a stream may go now."""
-    link = ls.link
-    dt = ticks_diff(now, ls.last)
-    ls.last = now
-    credit = ls.credit
-    if dt > 0:
-        credit += link.bytes_per_s * dt
-    credit -= ((link.tx_bytes - ls.last_tx) & TX_WRAP) * 1000  # priority traffic too
-    ls.last_tx = link.tx_bytes
-    cap = link.bytes_per_s * _BURST_MS
-    if cap < _MIN_BURST * 1000:
-        cap = _MIN_BURST * 1000
-    ls.credit = credit if credit < cap else cap
-    return len(ls.streams) != 0 and ls.credit > 0
-
-
 def _send(ls, s):
-    """Send a due stream -> False when the link cannot take more now (it stays due)."""
+    """Send a due stream -> False when the link cannot pay for more now (it stays due)."""
     link = ls.link
+    if not link.can_send(s.cost, RANK_BULK):
+        return False
     before = link.tx_bytes
-    dropped = link.tx_dropped
-    if s.send(link):
+    held = link.tx_held + link.tx_dropped
+    link.rank = RANK_BULK
+    ok = s.send(link)
+    link.rank = RANK_AUTO
+    if ok:
         _sent(ls, s, before)
-    elif link.tx_dropped != dropped:
+    elif link.tx_held + link.tx_dropped != held:
         return False
     else:
         s.live = False  # nothing written yet (or not sendable on this link)
-    _next_due(s, ls.last)  # (ls.last: this tick's now)
+    _next_due(s, ls.now)
     return True
 
 
@@ -434,8 +423,6 @@ def _sent(ls, s, before):
     s.cost = sent
     s.sent += 1
     s.live = True
-    ls.credit -= sent * 1000
-    ls.last_tx = ls.link.tx_bytes
     ls.win_stream += sent
 
 
