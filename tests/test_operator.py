@@ -28,8 +28,16 @@ def _param(m, name):
     return listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == name)
 
 
+def _drain(m):
+    # Answers to another station of the same identity reach this one too (the vehicle
+    # writes to every UDP peer): only what comes after its own requests counts.
+    while m.recv_match(blocking=False) is not None:
+        pass
+
+
 def _five(m):
     """The five changes -> what came of each: True where the vehicle took it."""
+    _drain(m)
     index = _param(m, "SIM_SPEED").param_index
     before = _param(m, "SIM_SPEED").param_value
     m.mav.param_set_send(1, 1, b"SIM_SPEED", before + 1.0, 9)
