@@ -1,6 +1,6 @@
 """Ingest driver for instruction counts (bench_wire_instr.py runs this under callgrind).
 
-    mpy_instr.py V2_STREAM FEED
+    mpy_instr.py STREAM FEED
 
 Reads the stream, cuts it into 4 KiB views and makes the parser as mpy_wire.py does
 (which cannot be imported: it runs on import); then, when FEED is 1, feeds the whole

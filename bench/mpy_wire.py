@@ -6,11 +6,12 @@ with and without MAVSTACK_PORTABLE=1).
 Ingest: the stream fed in 4 KiB chunks, parsed, CRC-checked and delivered to a no-op
 callback. Encode: pack_into + finish, MAVLink 2, the same six messages. Each chunk (or
 batch of frames) is timed on its own and the best of several runs counts, so that other
-processes taking the CPU now and then do not show. Allocation: gc.mem_alloc() before
-and after a whole run, with the collector off. Prints one JSON object.
+processes taking the CPU now and then do not show. Allocation: the bytes requested from
+the heap (micropython.mem_total()) over a whole run. Prints one JSON object.
 """
 import gc
 import json
+import micropython
 import struct
 import sys
 import time
@@ -84,15 +85,19 @@ def encode_all(enc, count, first=0):
             enc.finish(73, 1, 1)
 
 
-def allocated(fn, *args):
-    """Bytes allocated by one call."""
+def allocated(fn, a, b, c, none):
+    """Bytes fn(a, b, c) requested from the heap beyond what fn(a, none...) does, i.e.
+    for its frames and not for the bench's own calls. micropython.mem_total() counts
+    every request, also those freed before the call returns (frame states of functions
+    with many locals), which gc.mem_alloc() would not show."""
     gc.collect()
-    gc.disable()
-    before = gc.mem_alloc()
-    fn(*args)
-    n = gc.mem_alloc() - before
-    gc.enable()
-    return n
+    before = micropython.mem_total()
+    fn(a, b, c)
+    n = micropython.mem_total() - before
+    gc.collect()
+    before = micropython.mem_total()
+    fn(a, none[0], none[1])
+    return n - (micropython.mem_total() - before)
 
 
 def ingest(path):
@@ -107,7 +112,7 @@ def ingest(path):
     for _ in range(REPEATS):
         gc.collect()
         feed_timed(p, views, sizes, best)
-    return frames, sum(best), allocated(feed_all, p, views, sizes)
+    return frames, sum(best), allocated(feed_all, p, views, sizes, ([], []))
 
 
 def encode(count):
@@ -122,7 +127,7 @@ def encode(count):
             dt = time.ticks_diff(time.ticks_us(), t0)
             if dt < best[b]:
                 best[b] = dt
-    return batches * BATCH, sum(best), allocated(encode_all, enc, count)
+    return batches * BATCH, sum(best), allocated(encode_all, enc, count, 0, (0, 0))
 
 
 def main(argv):
