@@ -13,6 +13,8 @@ class SerialTransport:
     (VMIN=0, VTIME=0). Writes are skipped while the device cannot take them.
     """
 
+    rx_peer = None  # one peer at the other end of the wire: no address
+
     def __init__(self, device, baud):
         import termios
 
@@ -106,6 +108,8 @@ class SerialTransport:
 
 class UartTransport:
     """A board's machine.UART, created by the board profile."""
+
+    rx_peer = None
 
     def __init__(self, uart, baud, name="uart"):
         self.uart = uart

@@ -35,6 +35,7 @@ from ..compat import const, ticks_ms, ticks_us, ticks_diff, ticks_add, sleep_ms
 from ..endpoint import REBOOT, SHUTDOWN
 from ..fields import u32
 from ..kernels import copy
+from ..link import RANK_VITAL, RANK_OTHER, RANK_AUTO
 from .statustext import TextQueue, CRITICAL, NOTICE, WARNING
 from .operator import Operator, on_change_operator_control
 from . import vehicle_commands
@@ -352,7 +353,9 @@ class Status:
         self._measure()
         sys_status = "streams" not in self.ep.services
         for link in self.ep.links:
+            link.rank = RANK_VITAL  # the 1 Hz HEARTBEAT goes whatever else the link carries
             self.send_heartbeat(link)
+            link.rank = RANK_AUTO
             if sys_status:
                 self.send_sys_status(link)
 
@@ -426,7 +429,9 @@ class Status:
         copy(buf, p, off, 12)  # time_usec and seq as received
         buf[off + 12] = link.rx.sysid
         buf[off + 13] = link.rx.compid
+        link.rank = RANK_OTHER  # a cheap one-off: beyond the budget it is dropped
         link.send(_MSG_PING)
+        link.rank = RANK_AUTO
 
     def _on_system_time(self, link, p):
         # A ground station's clock is better than none; the application's wins.
