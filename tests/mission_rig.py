@@ -92,23 +92,24 @@ class Rig:
                 item.p1, item.p2, item.p3, item.p4, item.x, item.y, item.z, mission_type)
 
     def upload(self, items, mission_type=0, sysid=255, v1=False, as_int=True):
-        """Answer every request in order -> the MISSION_ACK type (None: none came)."""
+        """Answer every request as it comes -> the MISSION_ACK type (None: none came)."""
         self.take()
         self.send("mission_count", 1, 1, len(items), mission_type, sysid=sysid, v1=v1)
-        for _ in range(len(items) + 1):
+        name = "mission_item_int" if as_int else "mission_item"
+        for _ in range(4 * len(items) + 1):
             got = self.take(["MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK"])
-            acks = [g for g in got if g.get_type() == "MISSION_ACK"]
+            acks = [g for g in got if g.get_type() == "MISSION_ACK" and g.target_system == sysid]
             if acks:
                 return acks[-1].type
-            reqs = [g for g in got if g.get_type() != "MISSION_ACK"]
+            reqs = [g for g in got if g.get_type() != "MISSION_ACK" and g.target_system == sysid]
             if not reqs:
                 return None
-            seq = reqs[-1].seq
-            name = "mission_item_int" if as_int else "mission_item"
-            item = items[seq]
-            if not as_int and isinstance(item.x, int):
-                item = item._replace(x=item.x / 1e7, y=item.y / 1e7)
-            self.send(name, *self.item_args(seq, item, mission_type), sysid=sysid, v1=v1)
+            for req in reqs:
+                item = items[req.seq]
+                if not as_int and isinstance(item.x, int):
+                    item = item._replace(x=item.x / 1e7, y=item.y / 1e7)
+                self.send(name, *self.item_args(req.seq, item, mission_type), sysid=sysid, v1=v1, run=0)
+            self.run(2)
         return None
 
     def download(self, mission_type=0, sysid=255, v1=False, as_int=True):

@@ -51,7 +51,8 @@ def test_seed_form_over_mavlink1(rig):
     rig.take()
     rig.send("mission_count", 1, 1, 20, 0, v1=True)
     req = rig.take(["MISSION_REQUEST", "MISSION_REQUEST_INT"])
-    assert [r.get_type() for r in req] == ["MISSION_REQUEST"] and req[0]._raw[0] == 0xFE
+    assert {r.get_type() for r in req} == {"MISSION_REQUEST"} and all(r._raw[0] == 0xFE for r in req)
+    assert req[0].seq == 0
     assert rig.upload(items, v1=True, as_int=False) == ACCEPTED
     got = rig.download(v1=True, as_int=False)
     assert same(got, items)
@@ -64,13 +65,13 @@ def test_seed_form_over_mavlink1(rig):
 def test_item_form_follows_the_ground_station(rig):
     """A MAVLink 2 ground station that answers MISSION_REQUEST_INT with MISSION_ITEM is
     asked in its terms from then on."""
-    items = plan(3, form="float")
+    items = plan(12, form="float")
     rig.take()
-    rig.send("mission_count", 1, 1, 3, 0)
-    assert rig.take("MISSION_REQUEST_INT")[0].seq == 0
+    rig.send("mission_count", 1, 1, 12, 0)
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == list(range(8))  # a window of 8
     rig.send("mission_item", *rig.item_args(0, items[0]))
     req = rig.take(["MISSION_REQUEST", "MISSION_REQUEST_INT"])
-    assert [(r.get_type(), r.seq) for r in req] == [("MISSION_REQUEST", 1)]
+    assert [(r.get_type(), r.seq) for r in req] == [("MISSION_REQUEST", 8)]
 
 
 @pytest.mark.parametrize("change, code", [
@@ -197,10 +198,13 @@ def test_partial_write(rig):
     rig.take()
     rig.send("mission_write_partial_list", 1, 1, 3, 5, 0)
     new = plan(10, tag=2)
-    for seq in (3, 4, 5):
-        req = rig.take("MISSION_REQUEST_INT")
-        assert [r.seq for r in req] == [seq]
-        rig.send("mission_item_int", *rig.item_args(seq, new[seq]))
+    # 3 and 4 at once; the last item once all before it are in.
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [3, 4]
+    rig.send("mission_item_int", *rig.item_args(3, new[3]))
+    assert rig.take("MISSION_REQUEST_INT") == []
+    rig.send("mission_item_int", *rig.item_args(4, new[4]))
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [5]
+    rig.send("mission_item_int", *rig.item_args(5, new[5]))
     assert rig.last("MISSION_ACK").type == ACCEPTED
     assert same(rig.download(), items[:3] + new[3:6] + items[6:])
     # The seed's rule: a start beyond the current list is rejected; the plan stays.
@@ -251,34 +255,63 @@ def test_partial_read_is_paced(tmp_path):
     assert n + len(r.take("MISSION_ITEM_INT")) == 100
 
 
-def test_retries_then_cancel(rig):
+def test_rerequests_from_the_round_trip_then_cancel(rig):
+    """Missing items are asked again once the measured round trip (here a few ms: the
+    floor, 20 ms) has passed, then at doubling intervals; the upload is cancelled only
+    after 5 s without a new item."""
     old = plan(3, tag=1)
     assert rig.upload(old) == ACCEPTED
     rig.take()
     rig.send("mission_count", 1, 1, 5, 0)
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [0, 1, 2, 3]
     rig.send("mission_item_int", *rig.item_args(0, plan(5)[0]))
-    rig.take()
-    rig.run(260)
-    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [1]  # re-requested after 250 ms
-    rig.run(1000)
-    assert len(rig.take("MISSION_REQUEST_INT")) == 4  # 5 re-requests in all
+    assert rig.take("MISSION_REQUEST_INT") == []
+    rig.run(15)
+    assert rig.take("MISSION_REQUEST_INT") == []
+    rig.run(10)
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [1, 2, 3]  # after 20 ms
+    gaps = []
+    t = 25
+    elapsed = 25  # since item 0 came
+    while elapsed < 4950:
+        rig.run(1)
+        t += 1
+        elapsed += 1
+        if rig.take("MISSION_REQUEST_INT"):
+            gaps.append(t)
+            t = 0
+    assert 35 <= gaps[0] <= 60 and gaps[1:5] == [80, 160, 320, 640], gaps  # backing off, 5 doublings at most
+    assert set(gaps[5:]) == {640}
     assert rig.take("MISSION_ACK") == []
-    rig.run(300)
+    rig.run(60)
     acks = rig.take("MISSION_ACK")
-    assert [a.type for a in acks] == [OPERATION_CANCELLED]
+    assert [a.type for a in acks] == [OPERATION_CANCELLED]  # 5 s after the last item
     assert same(rig.download(), old)
     assert rig.upload(plan(5, tag=2)) == ACCEPTED  # idle again
+
+
+def test_progress_keeps_an_upload_alive(tmp_path):
+    """An upload that keeps making progress is never cancelled, however long it takes:
+    an item every 4 s, with every request before it lost."""
+    r = Rig(tmp_path)
+    items = plan(6, tag=4)
+    r.send("mission_count", 1, 1, 6, 0)
+    for seq in range(6):
+        r.run(4000)
+        assert r.take("MISSION_ACK") == []
+        r.send("mission_item_int", *r.item_args(seq, items[seq]))
+    assert r.last("MISSION_ACK").type == ACCEPTED and same(r.download(), items)
 
 
 def test_cancel_is_error_for_mavlink1(rig):
     rig.send("mission_count", 1, 1, 5, 0, v1=True)
     rig.take()
-    rig.run(2000)
+    rig.run(5100)
     assert [a.type for a in rig.take("MISSION_ACK")] == [ERROR]
 
 
 def test_silence_timeout(tmp_path):
-    """With many retries allowed, 5 s of silence from the ground station ends the upload."""
+    """5 s of silence from the ground station ends the upload, however often it is asked."""
     r = Rig(tmp_path, options={"mission_retries": "100", "mission_retry_ms": "100"})
     r.send("mission_count", 1, 1, 5, 0)
     r.take()
@@ -300,30 +333,38 @@ def test_ground_station_cancels(rig):
 
 
 def test_out_of_sequence_items(rig):
-    items = plan(5)
-    rig.send("mission_count", 1, 1, 5, 0)
-    rig.send("mission_item_int", *rig.item_args(0, items[0]))
-    rig.take()
-    rig.send("mission_item_int", *rig.item_args(3, items[3]))  # ahead: ignored, 1 asked again now
-    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [1]
-    rig.send("mission_item_int", *rig.item_args(0, items[0]))  # a copy of the last one: left to the timer
-    assert rig.take("MISSION_REQUEST_INT") == []
-    for seq in range(1, 5):
+    """Items come in any order; one not asked for is ignored; a missing item is asked
+    again at once when three items asked after it came without it."""
+    items = plan(10)
+    rig.send("mission_count", 1, 1, 10, 0)
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == list(range(8))
+    rig.send("mission_item_int", *rig.item_args(9, items[9]))  # not asked for (the last): ignored
+    for seq in (2, 1):
         rig.send("mission_item_int", *rig.item_args(seq, items[seq]))
+    assert rig.take("MISSION_REQUEST_INT") == []
+    rig.send("mission_item_int", *rig.item_args(1, items[1]))  # a copy: ignored
+    rig.send("mission_item_int", *rig.item_args(3, items[3]))
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [0]  # 0 or its request was lost
+    rig.send("mission_item_int", *rig.item_args(0, items[0]))
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [8]  # 0..3 in: the window moves on
+    for seq in (4, 5, 6, 7, 8):
+        rig.send("mission_item_int", *rig.item_args(seq, items[seq]))
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [9]  # the last, once all else is in
+    rig.send("mission_item_int", *rig.item_args(9, items[9]))
     assert rig.last("MISSION_ACK").type == ACCEPTED
     assert same(rig.download(), items)
 
 
 def test_repeated_count_restarts_at_seq_0(rig):
     rig.send("mission_count", 1, 1, 5, 0)
-    rig.send("mission_count", 1, 1, 5, 0)  # our request was lost: ask for 0 again
-    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [0, 0]
+    rig.send("mission_count", 1, 1, 5, 0)  # our requests were lost: ask again
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [0, 1, 2, 3] * 2
     rig.send("mission_item_int", *rig.item_args(0, waypoint(0)))
     rig.take()
     rig.send("mission_count", 1, 1, 5, 0)  # a late copy once items flow: ignored
     assert rig.take("MISSION_REQUEST_INT") == []
     rig.send("mission_count", 1, 1, 3, 0)  # a different count: a new upload
-    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [0]
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [0, 1]
     items = plan(3)
     for seq in range(3):
         rig.send("mission_item_int", *rig.item_args(seq, items[seq]))
@@ -362,17 +403,133 @@ def test_one_transfer_at_a_time(rig):
     assert same(rig.download(sysid=200), mine)  # idle again: anyone may read
 
 
-def test_download_holds_the_lock_until_the_last_item(rig):
-    assert rig.upload(plan(3)) == ACCEPTED
+def test_downloads_go_side_by_side(rig):
+    """A download holds no lock against other readers: a second ground station's list
+    and items are answered beside it, and the first one's goes on."""
+    items = plan(3)
+    assert rig.upload(items) == ACCEPTED
     rig.send("mission_request_list", 1, 1, 0)
     rig.send("mission_request_int", 1, 1, 0, 0)
     rig.take()
-    rig.send("mission_count", 1, 1, 2, 0, sysid=200)
-    assert rig.last("MISSION_ACK").type == DENIED
+    assert same(rig.download(sysid=200), items)
     rig.send("mission_request_int", 1, 1, 1, 0)
     rig.send("mission_request_int", 1, 1, 2, 0)  # the last one: done, no ACK needed
+    assert [i.seq for i in rig.take("MISSION_ITEM_INT")] == [1, 2]
+    assert rig.take("MISSION_ACK") == []
+    assert rig.missions.state == 0
+
+
+def _acks_to(rig, sysid):
+    return [a.type for a in rig.take("MISSION_ACK") if a.target_system == sysid]
+
+
+def test_upload_takes_over_a_download(rig):
+    """Without operator control anyone may change the plan: an upload takes over from
+    another ground station's download, which is told OPERATION_CANCELLED."""
+    assert rig.upload(plan(4, tag=1)) == ACCEPTED
+    rig.send("mission_request_list", 1, 1, 0, sysid=200)
+    rig.send("mission_request_int", 1, 1, 0, 0, sysid=200)
     rig.take()
-    assert rig.upload(plan(2), sysid=200) == ACCEPTED
+    new = plan(6, tag=2)
+    assert rig.upload(new) == ACCEPTED
+    assert same(rig.download(sysid=200), new)
+
+
+def test_cancelled_download_is_told(rig):
+    assert rig.upload(plan(4, tag=1)) == ACCEPTED
+    rig.send("mission_request_list", 1, 1, 0, sysid=200)
+    rig.take()
+    rig.send("mission_count", 1, 1, 2, 0)
+    assert _acks_to(rig, 200) == [OPERATION_CANCELLED]
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [0]
+
+
+def _passkey_rig(tmp_path):
+    r = Rig(tmp_path, services=("status", "commands", "missions"), options={"operator_passkey": "pw"})
+    r.send("change_operator_control", 1, 0, 0, b"pw")  # 255 takes control
+    return r
+
+
+def _spam_list(r, sysid=200):
+    r.send("mission_request_list", 1, 1, 0, sysid=sysid, run=0)
+
+
+def test_list_spam_cannot_stop_the_uploads_of_the_ground_station_in_control(tmp_path):
+    """Operator control on: a ground station not in control re-sending MISSION_REQUEST_LIST
+    before and all through the uploads of the one in control stops none of them."""
+    r = _passkey_rig(tmp_path)
+    for k in range(5):
+        items = plan(12, tag=k + 1)
+        _spam_list(r)
+        r.run(2)
+        r.take()
+        r.send("mission_count", 1, 1, len(items), 0)
+        result = None
+        for _ in range(60):
+            _spam_list(r)
+            got = r.take(["MISSION_REQUEST_INT", "MISSION_ACK"])
+            acks = [g.type for g in got if g.get_type() == "MISSION_ACK" and g.target_system == 255]
+            if acks:
+                result = acks[-1]
+                break
+            for req in got:
+                if req.get_type() == "MISSION_REQUEST_INT":
+                    r.send("mission_item_int", *r.item_args(req.seq, items[req.seq]), run=0)
+            r.run(2)
+        assert result == ACCEPTED, k
+        assert same(r.download(), items)
+
+
+def test_list_spam_cannot_block_an_upload_without_operator_control(rig):
+    """No passkey: a ground station's repeated MISSION_REQUEST_LIST, with an item asked
+    each time, holds nothing against another's upload."""
+    old = plan(3, tag=1)
+    assert rig.upload(old) == ACCEPTED
+    for _ in range(5):
+        rig.send("mission_request_list", 1, 1, 0, sysid=200)
+        rig.send("mission_request_int", 1, 1, 0, 0, sysid=200)
+    new = plan(9, tag=2)
+    assert rig.upload(new) == ACCEPTED
+    assert same(rig.download(), new)
+
+
+def test_stale_download_is_cancelled(rig):
+    """A download whose ground station stops asking (or only starts over) is cancelled
+    after 5 s without a new item served, and told so; meanwhile others read beside it."""
+    items = plan(4, tag=3)
+    assert rig.upload(items) == ACCEPTED
+    rig.send("mission_request_list", 1, 1, 0, sysid=200)
+    rig.send("mission_request_int", 1, 1, 0, 0, sysid=200)
+    rig.take()
+    for _ in range(9):  # starting over is no progress
+        rig.run(500)
+        rig.send("mission_request_list", 1, 1, 0, sysid=200)
+        rig.send("mission_request_int", 1, 1, 0, 0, sysid=200)
+        assert _acks_to(rig, 200) == []
+    rig.run(600)
+    assert _acks_to(rig, 200) == [OPERATION_CANCELLED]
+    assert rig.missions.state == 0
+    assert same(rig.download(sysid=201), items)
+
+
+def test_stalled_upload_gives_way(tmp_path):
+    """No passkey: an upload that has had no new item since it (re)started does not
+    block another ground station's upload; one that moves does."""
+    r = Rig(tmp_path)
+    other = plan(5, tag=1)
+    for k in range(4):  # 200 keeps starting over (a new count each time), and re-sends item 0
+        r.send("mission_count", 1, 1, 4 + k % 2, 0, sysid=200)
+        r.send("mission_item_int", *r.item_args(0, other[0]), sysid=200)
+    r.take()
+    mine = plan(7, tag=2)
+    assert r.upload(mine) == ACCEPTED
+    assert same(r.download(), mine)
+    # While 255's upload moves, 200's is refused.
+    r.send("mission_count", 1, 1, 7, 0)
+    r.send("mission_item_int", *r.item_args(0, mine[0]))
+    r.take()
+    r.send("mission_count", 1, 1, 5, 0, sysid=200)
+    assert _acks_to(r, 200) == [DENIED]
 
 
 def test_operator_control(tmp_path):
@@ -470,3 +627,93 @@ def test_storage_survives_a_restart(tmp_path):
     r2 = Rig(tmp_path)
     assert same(r2.download(), items) and same(r2.download(mission_type=1), fence)
     assert r2.download(mission_type=2) == []
+
+
+# --- ground stations as they answer requests ----------------------------------------
+class Peer:
+    """A ground station's side of an upload on the rig, one poll (1 ms) at a time: it
+    answers each request after `delay` ms, skips sending the items in `lose` (once
+    each), and serves requests by its own rules:
+    "any"     every request (QGroundControl, pymavlink's mavwp and mission_gcs);
+    "inorder" MAVSDK's: a request ahead of the item after the last one it sent is
+              ignored, an earlier one moves it back there;
+    "mavproxy" MAVProxy's: once it has sent the last item it answers no more."""
+
+    def __init__(self, rig, items, rule="any", delay=2, lose=()):
+        self.r = rig
+        self.items = items
+        self.rule = rule
+        self.delay = delay
+        self.lose = set(lose)
+        self.next = 0
+        self.done = False
+        self.queue = []  # (due ms, seq)
+        self.asked = []  # (ms, seq) of every request seen
+        self.sent = []
+        self.t = 0
+
+    def run(self, ms_max=20000):
+        self.r.take()
+        self.r.send("mission_count", 1, 1, len(self.items), 0, run=0)
+        while self.t < ms_max:
+            self.r.run(1)
+            self.t += 1
+            for g in self.r.take(["MISSION_REQUEST_INT", "MISSION_ACK"]):
+                if g.get_type() == "MISSION_ACK":
+                    return g.type
+                self.asked.append((self.t, g.seq))
+                self.queue.append((self.t + self.delay, g.seq))
+            while self.queue and self.queue[0][0] <= self.t:
+                self.answer(self.queue.pop(0)[1])
+        return None
+
+    def answer(self, seq):
+        if self.rule == "inorder":
+            if seq > self.next:
+                return
+            self.next = seq + 1
+        elif self.rule == "mavproxy":
+            if self.done:
+                return
+            self.done = seq == len(self.items) - 1
+        if seq in self.lose:
+            self.lose.discard(seq)
+            return
+        self.sent.append(seq)
+        self.r.send("mission_item_int", *self.r.item_args(seq, self.items[seq]), run=0)
+
+
+@pytest.mark.parametrize("rule", ["any", "inorder", "mavproxy"])
+def test_ground_stations_rules_with_lost_items(rig, rule):
+    """Whatever rule a ground station serves requests by, lost items (the first, one in
+    the middle, two in a row, the one before the last) end in an ACCEPTED upload; a
+    MAVSDK-like one has sent the last item last (it checks that on the ACK)."""
+    items = plan(40, tag=5)
+    peer = Peer(rig, items, rule, delay=3, lose=(0, 17, 25, 26, 38))
+    assert peer.run() == ACCEPTED, (peer.asked, peer.sent)
+    assert same(rig.download(), items)
+    assert peer.sent[-1] == 39
+    if rule == "inorder":
+        assert peer.next == 40
+
+
+def test_requests_fly_ahead(rig):
+    """A window of 8 requests is kept full: 40 items over a 30 ms round trip take about
+    40 / 8 round trips, not 40."""
+    items = plan(40, tag=6)
+    peer = Peer(rig, items, delay=30)
+    assert peer.run() == ACCEPTED
+    assert peer.t < 300, peer.t
+    assert sorted(s for _, s in peer.asked) == list(range(40))  # nothing asked twice
+
+
+def test_rerequest_follows_the_round_trip(rig):
+    """With a 100 ms round trip nothing is asked twice without cause; a lost item is
+    asked again once the round trip (and its deviation) has passed, not 250 ms later."""
+    items = plan(30, tag=7)
+    peer = Peer(rig, items, delay=100, lose=(20,))
+    assert peer.run() == ACCEPTED
+    times = [t for t, s in peer.asked if s == 20]
+    assert len(times) == 2
+    assert 100 <= times[1] - times[0] <= 200, times
+    assert len(peer.asked) == 31  # item 20 twice, the others once

@@ -14,7 +14,7 @@ from hypothesis import given, settings, strategies as st
 
 from conftest import FIRMWARE, MICROPYTHON, ROOT, run_mpy
 from mavstack.services.mission_store import HEADER_SIZE, RECORD_SIZE, MissionStore
-from mavstack.services import missions as service
+from mavstack.services import mission_items as service
 from mavstack.storage import Storage
 
 TESTS_MPY = os.path.join(ROOT, "tests", "mpy")
@@ -171,7 +171,7 @@ def test_corrupt_store_reported_by_statustext(tmp_path):
 
 
 # --- MISSION_ITEM's float degrees and MISSION_ITEM_INT's integers ------------------
-# The service converts in place, in the record's bytes (missions._fix, missions._unfix:
+# The service converts in place, in the record's bytes (mission_items.fix, mission_items.unfix:
 # small ints only, for 32-bit boards); these wrap them as int -> int functions.
 NOT_A_NUMBER = None
 
@@ -180,7 +180,7 @@ def to_fixed(b, scale_e):
     """float32 bytes b (degrees, or metres where scale_e is 4) -> the int32, NOT_A_NUMBER
     for NaN, infinities and values beyond int32 (the field is then 0)."""
     rec = bytearray(b)
-    if not service._fix(rec, 0, scale_e == 4):
+    if not service.fix(rec, 0, scale_e == 4):
         assert rec == bytes(4)
         return NOT_A_NUMBER
     return struct.unpack("<i", rec)[0]
@@ -189,7 +189,7 @@ def to_fixed(b, scale_e):
 def to_float(v, scale_e):
     """int32 v -> the bits of the float32 the service sends for it."""
     buf = bytearray(struct.pack("<i", v))
-    service._unfix(buf, 0, scale_e == 4)
+    service.unfix(buf, 0, scale_e == 4)
     return struct.unpack("<I", buf)[0]
 
 
@@ -278,17 +278,17 @@ FIXED = (473977420, -85455940, 1, -1, 2147483647, -2147483648, 0, -1224000000, 1
 def test_conversions_agree_on_micropython():
     code = (
         "import struct\n"
-        "from mavstack.services import missions as m\n"
+        "from mavstack.services import mission_items as m\n"
         "out = []\n"
         "for v in %r:\n"
         "    for local in (False, True):\n"
         "        b = bytearray(struct.pack('<f', v))\n"
-        "        ok = m._fix(b, 0, local)\n"
+        "        ok = m.fix(b, 0, local)\n"
         "        out.append(struct.unpack('<i', b)[0] if ok else None)\n"
         "for v in %r:\n"
         "    for local in (False, True):\n"
         "        b = bytearray(struct.pack('<i', v))\n"
-        "        m._unfix(b, 0, local)\n"
+        "        m.unfix(b, 0, local)\n"
         "        out.append(struct.unpack('<I', b)[0])\n"
         "print(out)\n" % (FLOATS, FIXED)
     )

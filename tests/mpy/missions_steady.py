@@ -19,7 +19,7 @@ altitudes down to -400 m. The mission store is seeded with a generation just bel
 2^30, so the commits of the round carry it past 2^30; a second store, seeded at
 0xC000FFFF, loads and commits under the same check.
 
-Prints `ok requested=0 uploads=5 items=2N+5 requests=2N+9 gen=XXXXXXXX gen_store=XXXXXXXX`
+Prints `ok requested=0 uploads=5 items=2N+5 requests=2N+13 gen=XXXXXXXX gen_store=XXXXXXXX`
 (the generations reached, hex), or what went wrong: `fail requested=B` followed by
 the bytes each stage asked the heap for (frame states of functions over 11 words
 included) and the rest of the `ok` line, when only that check failed.
@@ -134,6 +134,7 @@ class Ground:
         self.write_partial = g.frame(_WRITE_PARTIAL, 2, 4, 1, 1, 0)
         self.request_partial = g.frame(_REQUEST_PARTIAL, 1, 5, 1, 1, 0)
         # What the vehicle sent.
+        self.asked = bytearray(n)  # item k has been asked for (several fly at once)
         self.req_seq = -1
         self.reqs_seen = 0
         self.ack_type = -1
@@ -150,6 +151,8 @@ class Ground:
     def watch(self, msgid, p):
         if msgid == _REQUEST_INT or msgid == _REQUEST:
             self.req_seq = u16(p, 0)
+            if self.req_seq < self.n:
+                self.asked[self.req_seq] = 1
             self.reqs_seen += 1
         elif msgid == _ACK:
             self.ack_type = p[2]
@@ -183,8 +186,14 @@ class Ground:
         self.b.send(f)
         self.b.run(2)
 
+    def forget(self):
+        """A new upload: nothing asked for yet."""
+        for k in range(self.n):
+            self.asked[k] = 0
+
     def upload(self, f, xyz):
         acks = self.acks
+        self.forget()
         self.b.send(self.count)
         self.b.run(2)
         err = self.send_items(f, xyz, 0, self.n)
@@ -193,9 +202,9 @@ class Ground:
         return err
 
     def send_items(self, f, xyz, k, end):
-        """Items k .. end - 1, each once the vehicle asks for it."""
+        """Items k .. end - 1, in order, each once the vehicle has asked for it."""
         while k < end:
-            if self.req_seq != k:
+            if not self.asked[k]:
                 return 1000 + k
             self.send_item(f, xyz, k)
             k += 1
@@ -219,6 +228,7 @@ class Ground:
         return 0 if self.bad == 0 else 5000 + self.bad
 
     def partial(self):
+        self.forget()
         self.b.send(self.write_partial)
         self.b.run(2)
         if self.send_items(self.item, self.xyz_int, 2, 5) or self.ack_type != 0:
@@ -235,8 +245,11 @@ class Ground:
     def abandoned(self):
         seen = self.reqs_seen
         self.b.send(self.count3)
-        self.b.run(2000)  # a request, 5 re-requests 250 ms apart, then OPERATION_CANCELLED
-        if self.reqs_seen != seen + 6 or self.ack_type != 15:
+        # Items 0 and 1 asked (the last one waits for them), asked again after 250, 500,
+        # 1000, 2000 and 2000 ms (no round trip measured yet; backing off), then
+        # OPERATION_CANCELLED 5 s after the start.
+        self.b.run(5100)
+        if self.reqs_seen != seen + 10 or self.ack_type != 15:
             return 7000 + self.reqs_seen - seen
         return 0
 
@@ -343,6 +356,12 @@ class Out:
         self.m.out += _mem() - t
         return r
 
+    def call2(self, a, b):
+        t = _mem()
+        r = self.fn(a, b)
+        self.m.out += _mem() - t
+        return r
+
 
 _copy = None  # the copy kernel, metered by copy_out (a function: 4 arguments in a method's
 _meter = None  # frame would take more than 11 words, and its frame would count as own)
@@ -367,6 +386,7 @@ class OutFile:
 def meter(b, stores):
     """Meter the missions service of bench b (its only service)."""
     import mavstack.services.missions as module
+    import mavstack.services.mission_items as items
 
     global _copy, _meter
     m = _meter = Meter()
@@ -378,8 +398,10 @@ def meter(b, stores):
     for link in ep.links:
         link.begin = Out(m, link.begin).call0
         link.send = Out(m, link.send).call1
+        link.can_send = Out(m, link.can_send).call2
     _copy = module.copy
     module.copy = copy_out
+    items.copy = copy_out
     for store in stores:
         if store is not None:
             store._files = [OutFile(m, f) for f in store._files]

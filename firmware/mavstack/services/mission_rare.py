@@ -11,6 +11,7 @@ missions.Missions service; its state and helpers are used as its own methods use
 """
 from ..compat import const, ticks_diff
 from ..fields import i16, u16
+from ..link import RANK_FILL
 
 # As in missions.py.
 _MSG_REQUEST_PARTIAL_LIST = const(37)
@@ -61,10 +62,14 @@ def _write_partial(m, link, p):
     elif end >= store.capacity:  # the plan would have end + 1 items
         m._reply(link, _NO_SPACE, store.mission_type)
     else:
-        m.t_count = end + 1 if end >= store.count else store.count
-        m.t_seq = start
         m.t_end = end
-        m._upload(link, store, store.count)
+        _partial(m, link, store, start)
+
+
+def _partial(m, link, store, start):
+    """Upload items start .. m.t_end into the plan in force."""
+    m.t_count = m.t_end + 1 if m.t_end >= store.count else store.count
+    m.upload.start(link, store, start, store.count)
 
 
 def _stray(m, link, p):
@@ -95,7 +100,8 @@ def _request_partial(m, link, p):
 
 
 def push(m, now):
-    """The items of a partial list go out at a share of the link's capacity (tick)."""
+    """The items of a partial list go out at a share of the link's capacity (tick), and
+    only while the link's byte budget has room for them at RANK_FILL (after streams)."""
     link = m.t_link
     elapsed = ticks_diff(now, m.t_sent)
     if elapsed > 0:
@@ -104,8 +110,9 @@ def push(m, now):
                                * (link.bytes_per_s if link.bytes_per_s < _PUSH_MAX_RATE else _PUSH_MAX_RATE)
                                // (1000 * _PUSH_SHARE))
         m.t_credit = credit if credit < 4 * _ITEM_FRAME_BYTES else 4 * _ITEM_FRAME_BYTES
-    while m.t_credit >= _ITEM_FRAME_BYTES and m.t_seq <= m.t_end:
+    while m.t_credit >= _ITEM_FRAME_BYTES and m.t_seq <= m.t_end and link.can_send(_ITEM_FRAME_BYTES, RANK_FILL):
         m.t_credit -= _ITEM_FRAME_BYTES
+        m.t_progress = now
         m._send_item(link, m.t_store, m.t_seq, m.t_int)
         m.t_seq += 1
     if m.t_seq > m.t_end:

@@ -1,0 +1,278 @@
+"""What a mission item holds, for missions.py: the check of an uploaded item against
+the rules of its plan type (frames the vehicle flies, commands it knows, numbers where
+a command needs them, positions within range, DO_JUMP targets within the plan), its
+32-byte record built on the way (mission_store.py's layout), and the seed's
+MISSION_ITEM float degrees converted to and from MISSION_ITEM_INT's 1e7 integers.
+
+Allocation-free on a 32-bit board too: coordinates (1e7 degrees reach 1.8e9) stay in
+their bytes, are range-checked by 16-bit halves and converted by small-int arithmetic.
+m is the missions.Missions service (its record buffer, frames, extra commands and the
+upload under way); each function keeps within 11 words of locals and stack.
+"""
+from ..compat import const
+from ..fields import u16, i32_cmp, f32_is_nan, f32_to_small
+from ..kernels import copy
+
+# MAV_MISSION_RESULT
+_ACCEPTED = const(0)
+_UNSUPPORTED_FRAME = const(2)
+_UNSUPPORTED = const(3)
+_INVALID_PARAM1 = const(6)
+_INVALID_PARAM5_X = const(10)
+_INVALID_PARAM6_Y = const(11)
+_INVALID_PARAM7 = const(12)
+
+_TYPE_MISSION = const(0)
+_CMD_DO_JUMP = const(177)
+_FRAME_MISSION = const(2)
+
+# Position bounds in 1e7 degrees, as (signed high half, low half): +-90e7, +-180e7.
+_LAT_MAX_HI = const(13732)  # 900000000 = 13732 * 65536 + 59648
+_LAT_MAX_LO = const(59648)
+_LAT_MIN_HI = const(-13733)  # -900000000 = -13733 * 65536 + 5888
+_LAT_MIN_LO = const(5888)
+_LON_MAX_HI = const(27465)  # 1800000000 = 27465 * 65536 + 53760
+_LON_MAX_LO = const(53760)
+_LON_MIN_HI = const(-27466)  # -1800000000 = -27466 * 65536 + 11776
+_LON_MIN_LO = const(11776)
+
+# What an item's command needs, per MAV_MISSION_TYPE: 3 bytes a command, its id (little
+# endian) and what it needs: bits 0-3 param1-4 must be numbers, _P7 z must be a
+# number, _POS x/y are a position (range-checked in global frames, refused in
+# MAV_FRAME_MISSION). Bytes, not tuples: a small board keeps them in one object.
+_P1 = const(1)
+_P2 = const(2)
+_P7 = const(64)
+_POS = const(128)
+_MISSION_RULES = (  # the seed's NAV, CONDITION and DO commands
+    b"\x10\x00\xc0"  # 16 NAV_WAYPOINT: _POS | _P7
+    b"\x11\x00\xc0"  # 17 NAV_LOITER_UNLIM: _POS | _P7
+    b"\x12\x00\xc1"  # 18 NAV_LOITER_TURNS: _POS | _P7 | _P1
+    b"\x13\x00\xc1"  # 19 NAV_LOITER_TIME: _POS | _P7 | _P1
+    b"\x14\x00\x00"  # 20 NAV_RETURN_TO_LAUNCH
+    b"\x15\x00\x80"  # 21 NAV_LAND: _POS (z NaN: land at ground level)
+    b"\x16\x00\xc0"  # 22 NAV_TAKEOFF: _POS | _P7
+    b"\x50\x00\x00"  # 80 NAV_ROI
+    b"\x51\x00\x00"  # 81 NAV_PATHPLANNING
+    b"\x70\x00\x01"  # 112 CONDITION_DELAY: _P1
+    b"\x71\x00\x41"  # 113 CONDITION_CHANGE_ALT: _P1 | _P7
+    b"\x72\x00\x01"  # 114 CONDITION_DISTANCE: _P1
+    b"\x73\x00\x01"  # 115 CONDITION_YAW: _P1
+    b"\xb0\x00\x01"  # 176 DO_SET_MODE: _P1
+    b"\xb1\x00\x03"  # 177 DO_JUMP: _P1 | _P2
+    b"\xb2\x00\x02"  # 178 DO_CHANGE_SPEED: _P2
+    b"\xb3\x00\x01"  # 179 DO_SET_HOME: _P1
+    b"\xb4\x00\x03"  # 180 DO_SET_PARAMETER: _P1 | _P2
+    b"\xb5\x00\x03"  # 181 DO_SET_RELAY: _P1 | _P2
+    b"\xb6\x00\x03"  # 182 DO_REPEAT_RELAY: _P1 | _P2
+    b"\xb7\x00\x03"  # 183 DO_SET_SERVO: _P1 | _P2
+    b"\xb8\x00\x03"  # 184 DO_REPEAT_SERVO: _P1 | _P2
+    b"\xc8\x00\x00"  # 200 DO_CONTROL_VIDEO
+)
+_FENCE_RULES = (
+    b"\x88\x13\x80"  # 5000 NAV_FENCE_RETURN_POINT: _POS
+    b"\x89\x13\x81"  # 5001 NAV_FENCE_POLYGON_VERTEX_INCLUSION: _POS | _P1 (vertex count)
+    b"\x8a\x13\x81"  # 5002 NAV_FENCE_POLYGON_VERTEX_EXCLUSION: _POS | _P1
+    b"\x8b\x13\x81"  # 5003 NAV_FENCE_CIRCLE_INCLUSION: _POS | _P1 (radius)
+    b"\x8c\x13\x81"  # 5004 NAV_FENCE_CIRCLE_EXCLUSION: _POS | _P1
+)
+_RALLY_RULES = b"\xec\x13\xc0"  # 5100 NAV_RALLY_POINT: _POS | _P7
+_RULES = (_MISSION_RULES, _FENCE_RULES, _RALLY_RULES)
+LOCAL_FRAMES = b"\x01\x04\x07\x08\x09\x0c\x14\x15"  # x, y in metres (* 1e4 in MISSION_ITEM_INT)
+
+
+def check(m, p, is_int, seq):
+    """Validate item seq (payload p of MISSION_ITEM_INT, or MISSION_ITEM if not is_int)
+    and build its record in m._rec -> MAV_MISSION_RESULT."""
+    _record(m._rec, p)
+    frame = p[34]
+    if frame not in m.frames:
+        return _UNSUPPORTED_FRAME
+    need = _need(m, u16(p, 30))
+    if need < 0:
+        return _UNSUPPORTED
+    if need & _POS and frame == _FRAME_MISSION:
+        return _UNSUPPORTED_FRAME
+    return (_xy(m._rec, frame in LOCAL_FRAMES, need, is_int) or _numbers(p, need)
+            or (_jump(m, p, seq) if u16(p, 30) == _CMD_DO_JUMP else _ACCEPTED))
+
+
+def _record(rec, p):
+    copy(rec, p, 0, 28)  # params, x, y, z as they came
+    rec[28] = p[30]  # command
+    rec[29] = p[31]
+    rec[30] = p[34]  # frame
+    rec[31] = p[36]  # autocontinue
+
+
+def _need(m, command):
+    """What the command needs (_P*, _POS bits), -1 if this plan type does not take it."""
+    mt = m.t_store.mission_type
+    rules = _RULES[mt]
+    for i in range(0, len(rules), 3):
+        if rules[i] | rules[i + 1] << 8 == command:
+            return rules[i + 2]
+    if mt == _TYPE_MISSION and m.extra is not None:
+        return m.extra.get(command, -1)
+    return -1
+
+
+def _xy(rec, local, need, is_int):
+    """x, y of the record: the seed's float degrees made integers, then range-checked."""
+    pos = need & _POS
+    if not is_int:
+        # NaN or beyond int32: refused where a position is needed, else stored as 0.
+        if not fix(rec, 16, local) and pos:
+            return _INVALID_PARAM5_X
+        if not fix(rec, 20, local) and pos:
+            return _INVALID_PARAM6_Y
+    if pos and not local:
+        if i32_cmp(rec, 16, _LAT_MAX_HI, _LAT_MAX_LO) > 0 or i32_cmp(rec, 16, _LAT_MIN_HI, _LAT_MIN_LO) < 0:
+            return _INVALID_PARAM5_X
+        if i32_cmp(rec, 20, _LON_MAX_HI, _LON_MAX_LO) > 0 or i32_cmp(rec, 20, _LON_MIN_HI, _LON_MIN_LO) < 0:
+            return _INVALID_PARAM6_Y
+    return _ACCEPTED
+
+
+def _jump(m, p, seq):
+    # f32_to_small: a target or repeat count beyond 2^30 is as wrong as any other.
+    target = f32_to_small(p, 0)
+    if target < 0 or target >= m.t_count or target == seq:
+        return _INVALID_PARAM1
+    if f32_to_small(p, 4) < -1:
+        return _INVALID_PARAM1 + 1
+    return _ACCEPTED
+
+
+def _numbers(p, need):
+    """NaN where the command needs a number -> INVALID_PARAM1..4, 7; else ACCEPTED."""
+    for i in range(4):
+        if need & (1 << i) and f32_is_nan(p, i * 4):
+            return _INVALID_PARAM1 + i
+    if need & _P7 and f32_is_nan(p, 24):
+        return _INVALID_PARAM7
+    return _ACCEPTED
+
+
+# --- MISSION_ITEM's float32 degrees <-> MISSION_ITEM_INT's int32 ---------------------
+# Exact, and with small ints only: a float32 is m * 2**(e-150) (m < 2**24), so
+# f * 10**k = m * 5**k / 2**(150-e-k), where m * 5**k < 2**41 is held as two ints.
+# The other way is long division, 4 bits and then 1 bit at a time.
+_acc = [0, 0]  # the scratch of the conversions: a wide number as two small ints
+
+
+def fix(rec, o, local):
+    """In place: the float32 at rec[o] (degrees; metres where local) -> the int32 of
+    MISSION_ITEM_INT (* 1e7; * 1e4 where local), nearest, halves away from zero.
+    False, and 0 written, for NaN, infinities and values beyond int32."""
+    e = (rec[o + 3] & 0x7F) << 1 | rec[o + 2] >> 7
+    # |f| >= 2**(e-127): beyond 2**31 / 10**k it cannot fit an int32 (NaN, inf: e 255).
+    if e > (144 if local else 134):
+        return _put_i32(rec, o, False)
+    # m * 5**k = H * 2**24 + L into _acc, by 12-bit pieces of m (5**7 < 2**17).
+    m = (rec[o + 2] & 0x7F | (0x80 if e else 0)) << 16 | rec[o + 1] << 8 | rec[o]
+    a = (m >> 12) * (625 if local else 78125)  # < 2**12 * 5**7 < 2**29
+    m = (m & 0xFFF) * (625 if local else 78125) + ((a & 0xFFF) << 12)  # < 2**30
+    _acc[0] = (a >> 12) + (m >> 24)
+    _acc[1] = m & 0xFFFFFF
+    _shift((149 if e == 0 else 150 - e) - (4 if local else 7))  # e 0: subnormal
+    return _put_i32(rec, o, _acc[0] <= 0x7FFF)  # beyond int32: 0
+
+
+def _shift(s):
+    """_acc = (H, L) -> v = round((H * 2**24 + L) / 2**s), halves up, as (v >> 16, v & 0xFFFF)."""
+    if s > 41:  # H * 2**24 + L < 2**41: below one half
+        _acc[0] = _acc[1] = 0
+        return
+    h = _acc[0]
+    low = _acc[1]
+    if s <= 24:
+        low += 1 << (s - 1)
+    else:
+        h += 1 << (s - 25)
+    h += low >> 24
+    low &= 0xFFFFFF
+    _acc[0] = _bits16(h, low, s + 16)
+    _acc[1] = _bits16(h, low, s)
+
+
+def _bits16(h, low, t):
+    """Bits t .. t+15 of h * 2**24 + low (h < 2**18, low < 2**24)."""
+    if t >= 24:
+        return (h >> (t - 24)) & 0xFFFF
+    v = low >> t
+    if t > 8:  # h's lowest t - 8 bits land below bit 16
+        v |= (h & ((1 << (t - 8)) - 1)) << (24 - t)
+    return v & 0xFFFF
+
+
+def _put_i32(buf, o, ok):
+    """buf[o:o+4] <- the magnitude in _acc (high half, low half) as an int32, negated if
+    buf[o+3] has its sign bit set (the float's, or the int's); 0 if not ok -> ok."""
+    hi = _acc[0] if ok else 0
+    lo = _acc[1] if ok else 0
+    if ok and buf[o + 3] & 0x80:  # two's complement by halves: the carry of -lo goes into ~hi
+        lo = -lo & 0xFFFF
+        hi = (~hi + (lo == 0)) & 0xFFFF
+    buf[o] = lo & 0xFF
+    buf[o + 1] = lo >> 8
+    buf[o + 2] = hi & 0xFF
+    buf[o + 3] = hi >> 8
+    return ok
+
+
+def unfix(buf, o, local):
+    """In place: the int32 at buf[o] -> the float32 nearest to it / 1e7 (/ 1e4 where
+    local), ties to even (its bits)."""
+    neg = buf[o + 3] & 0x80
+    if neg:  # the magnitude first, in place, by halves (2**31 too: 0x8000, 0)
+        _acc[0] = buf[o + 2] | buf[o + 3] << 8
+        _acc[1] = buf[o] | buf[o + 1] << 8
+        _put_i32(buf, o, True)
+    if not (buf[o] or buf[o + 1] or buf[o + 2] or buf[o + 3]):
+        return  # 0: the bits of 0.0 are already there
+    d = 10000 if local else 10000000
+    _acc[0] = _acc[1] = 0
+    _div16(buf[o + 2] | buf[o + 3] << 8, d)
+    _div16(buf[o] | buf[o + 1] << 8, d)
+    d = 150 - _frac(d)  # the biased exponent; the 24-bit significand is in _acc[0]
+    q = _acc[0]
+    buf[o] = q & 0xFF
+    buf[o + 1] = (q >> 8) & 0xFF
+    buf[o + 2] = (d & 1) << 7 | (q >> 16) & 0x7F
+    buf[o + 3] = neg | d >> 1
+
+
+def _div16(x, d):
+    """Long division: (quotient, remainder) by d in _acc, continued by the 16 bits of x,
+    4 at a time (the remainder is below d, so remainder * 16 stays small)."""
+    n = 12
+    while n >= 0:
+        r = _acc[1] << 4 | (x >> n) & 0xF
+        _acc[0] = _acc[0] << 4 | r // d
+        _acc[1] = r % d
+        n -= 4
+
+
+def _frac(d):
+    """Binary digits of remainder / d appended to the quotient until it has 24
+    significant bits, then rounded to nearest, ties to even -> how many were appended.
+    (The quotient is below 2**31 / 10**4 < 2**23 to begin with.)"""
+    q = _acc[0]
+    r = _acc[1]
+    n = 0
+    while q < 0x800000:
+        q <<= 1
+        r <<= 1
+        if r >= d:
+            r -= d
+            q |= 1
+        n += 1
+    r <<= 1
+    if r > d or (r == d and q & 1):
+        q += 1
+        if q == 0x1000000:
+            q >>= 1
+            n -= 1
+    _acc[0] = q
+    return n
