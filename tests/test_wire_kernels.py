@@ -1,12 +1,14 @@
 """Byte kernels: viper (MicroPython) and portable (MicroPython with MAVSTACK_PORTABLE=1,
-and CPython) agree with each other and with an independent CRC, and the whole parser
-gives the same frames and statistics with either set."""
+and CPython) agree with each other and with an independent CRC (and, for the frame
+scanner, an independent model of it), and the whole parser gives the same frames and
+statistics with either set."""
 import random
 
 import fastcrc
 import pytest
 
-from wire_oracle import RUNTIME_IDS, RUNTIMES, corrupt, random_frames, parse_files, run_tool
+from mavstack.bytes_portable import FIELDS, IDS, SLOTS
+from wire_oracle import OURS, RUNTIME_IDS, RUNTIMES, corrupt, random_frames, parse_files, run_tool, x25
 
 
 def kernel_cases(rnd, n):
@@ -85,3 +87,113 @@ def test_parser_same_output_with_both_kernel_sets(tmp_path):
     reference = outputs["cpython", "r5"]
     for key, text in outputs.items():
         assert text == reference, key
+
+
+# --- the frame scanner ------------------------------------------------------------------
+
+
+def scan_model(src, pos, end, buf):
+    """kernels.scan as its contract (bytes_portable.py) says, written plainly -> (answer,
+    buf after)."""
+    buf = bytearray(buf)
+    fast = end >= 0
+    end = abs(end)
+    k = next((i for i in range(pos, end) if src[i] in (0xFD, 0xFE)), end)
+    if k > pos:
+        return -1 - (k << 2), buf
+    more = -1 - (pos << 2 | 1), buf
+    v1 = src[pos] == 0xFE
+    hdr = 6 if v1 else 10
+    if end - pos < hdr:
+        return more
+    plen = src[pos + 1]
+    if v1:
+        msgid, signed = src[pos + 5], 0
+    else:
+        if src[pos + 2] > 1 or src[pos + 8] or src[pos + 9]:
+            return more
+        msgid, signed = src[pos + 7], src[pos + 2]
+    extra, least, full = buf[IDS + 3 * msgid:IDS + 3 * msgid + 3]
+    if full == 0 or plen > full or (plen < least if v1 else plen == 0):
+        return more
+    n = hdr + plen + 2 + 13 * signed
+    c = pos + hdr + plen
+    if end - pos < n or x25(src[pos + 1:c], extra) != src[c] | src[c + 1] << 8:
+        return more
+    buf[0:n] = src[pos:pos + n]
+    e = pos + n
+    if not fast or signed:
+        return -1 - (e << 2 | 2), buf
+    buf[hdr + plen:hdr + full] = bytes(full - plen)
+    s = 2 if v1 else 4  # seq, sysid, compid
+    slots = [i for i in range(SLOTS, FIELDS, 4) if buf[i] and buf[i + 1:i + 3] == buf[s + 1:s + 3]]
+    if not slots or (buf[s] - buf[slots[0] + 3] - 1) & 0xFF:
+        return -1 - (e << 2 | 2), buf
+    buf[slots[0] + 3] = buf[s]
+    v = 1 if v1 else 2
+    changed = buf[FIELDS] != v
+    buf[FIELDS] = v
+    return e << 2 | (2 if v1 else 0) | changed, buf
+
+
+def id_table(crc_len):
+    buf = bytearray(IDS + 3 * 256)
+    for msgid, info in crc_len.items():
+        if msgid < 256:
+            buf[IDS + 3 * msgid:IDS + 3 * msgid + 3] = bytes([info & 0xFF, (info >> 8) & 0xFF, info >> 16])
+    return buf
+
+
+def scan_cases(rnd, n):
+    """Frames (MAVLink 1, 2, signed, ids over 255, damaged, cut short) after garbage or
+    not, scanned fast or careful from their start or earlier, with senders known or not,
+    in sequence or not -> (lines, expected answers and buffers)."""
+    table = id_table(OURS["common"].CRC_LEN)
+    frames = random_frames(rnd, n, v1_share=0.4, signed_share=0.15)
+    lines, expect = [], []
+    for f in frames:
+        f = bytearray(f)
+        how = rnd.random()
+        if how < 0.1:
+            f[rnd.randrange(1, len(f))] ^= 1 << rnd.randrange(8)  # damaged anywhere
+        elif how < 0.15:
+            f = f[:rnd.randrange(1, len(f))]  # cut short
+        lead = bytes(rnd.randrange(0xFD) for _ in range(rnd.choice([0, 0, 0, 3])))
+        src = lead + f + bytes(rnd.randrange(256) for _ in range(rnd.randint(0, 20)))
+        buf = bytearray(table)
+        buf[0:280] = rnd.randbytes(280)
+        hdr = 6 if f[0] == 0xFE else 10
+        if len(f) >= hdr and rnd.random() < 0.8:  # the sender in a slot
+            s = 2 if hdr == 6 else 4
+            i = SLOTS + 4 * rnd.randrange(8)
+            last = (f[s] - 1) & 0xFF if rnd.random() < 0.8 else rnd.randrange(256)
+            buf[i:i + 4] = bytes([1, f[s + 1], f[s + 2], last])
+        buf[FIELDS] = rnd.choice([0, 1, 2])
+        pos = rnd.choice([0, len(lead)]) if lead else 0
+        end = len(src) if rnd.random() < 0.9 else rnd.randint(pos + 1, len(src))
+        if rnd.random() < 0.2:
+            end = -end
+        lines.append("scan %s %d %d %s" % (src.hex(), pos, end, buf.hex()))
+        expect.append(scan_model(src, pos, end, buf))
+    return lines, expect
+
+
+@pytest.mark.parametrize("runtime,portable", RUNTIMES, ids=RUNTIME_IDS)
+def test_scan_agrees_with_its_model(tmp_path, runtime, portable):
+    lines, expect = scan_cases(random.Random(4321), 1500)
+    answers = [e[0] for e in expect]
+    assert sum(a >= 0 for a in answers) > 300  # the fast answer
+    for code in (0, 1, 2):
+        assert sum(a < 0 and (-1 - a) & 3 == code for a in answers) > 30
+    src, out = tmp_path / "cases.txt", tmp_path / "out.txt"
+    src.write_text("\n".join(lines) + "\n")
+    run_tool(["kernels", src, out], portable, runtime)
+    got = out.read_text().split("\n")[:-1]
+    assert len(got) == len(expect)
+    for line, g, (answer, buf) in zip(lines, got, expect):
+        r, hx = g.split()
+        assert int(r) == answer, line[:120]
+        after = bytes.fromhex(hx)
+        # The frame area is the scanner's scratch when it delivers nothing.
+        keep = 280 if answer < 0 and (-1 - answer) & 3 != 2 else 0
+        assert after[keep:] == buf[keep:], line[:120]

@@ -5,6 +5,7 @@ import random
 import pytest
 
 from mavstack.endpoint import Endpoint
+from mavstack.parser import Parser
 from wire_oracle import OURS, MemoryTransport, parse_files, reference
 
 M2 = reference("common", 2)
@@ -99,3 +100,41 @@ def test_gap_sizes():
         t.rx += hb(seq, 1, 1)
     ep.poll(0)
     assert link.rx.frames == 7 and link.rx.lost == 2 + 245 + 98
+
+
+def test_verify_hook_set_by_a_frame_applies_to_the_next_in_the_same_chunk():
+    """Frames that arrive whole inside one chunk are delivered one at a time: a verify
+    hook that a handler sets (as SETUP_SIGNING's does) judges the very next frame, sees
+    it as on the wire (a trimmed payload's CRC still in place), and what it drops is
+    neither delivered nor counted, in frames or in sequence losses."""
+    got, seen = [], []
+    p = None
+
+    def verify(buf, plen, signed):
+        wire = buf[10 + plen] | buf[11 + plen] << 8
+        seen.append((buf[4], plen, wire))
+        return buf[4] % 2 == 0  # even sequence numbers pass
+
+    def on_frame(msgid, payload):
+        got.append(p.seq)
+        if p.seq == 1:
+            p.verify = verify
+
+    def attitude(seq):  # its payload's trailing zeros trimmed on the wire
+        m = M2.MAVLink(None, 1, 1)
+        m.seq = seq
+        return M2.MAVLink_attitude_message(seq, 0.5, 0.25, 0.0, 0.0, 0.0, 0.0).pack(m)
+
+    p = Parser(COMMON.CRC_LEN, on_frame)
+    frames = [hb(seq, 1, 1) if seq % 3 else attitude(seq) for seq in range(6)]
+    assert frames[3][1] < 28
+    data = bytearray(b"".join(frames))
+    p.feed(data, len(data))
+    assert got == [0, 1, 2, 4]
+    for (seq, plen, wire), f in zip(seen, frames[2:]):
+        assert seq == f[4] and plen == f[1] and wire == f[-2] | f[-1] << 8
+    assert p.frames == 4 and p.lost == 1  # 3 was dropped: 2 -> 4 is a gap of one
+    p.verify = None
+    more = bytearray(hb(5, 1, 1) + hb(6, 1, 1))
+    p.feed(more, len(more))
+    assert got[-2:] == [5, 6] and p.frames == 6

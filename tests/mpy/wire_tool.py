@@ -106,7 +106,8 @@ def encode(dialect, src, out):
 
 
 def run_kernels(src, out):
-    """IN lines: crc HEX START END CRC | stx HEX POS END | copy DST SRC D S N | zero HEX START END."""
+    """IN lines: crc HEX START END CRC | stx HEX POS END | copy DST SRC D S N | zero HEX START END
+    | scan SRC POS END BUF (out: the answer, then BUF after)."""
     crc16, find_stx, copy, zero = kernels.crc16, kernels.find_stx, kernels.copy, kernels.zero
     for line in src:
         w = line.split()
@@ -126,6 +127,10 @@ def run_kernels(src, out):
         elif op == "zero":
             zero(a, int(w[2]), int(w[3]))
             out.write(hexs(a) + "\n")
+        elif op == "scan":
+            buf = bytearray(unhexlify(w[4]))
+            r = kernels.scan(a, int(w[2]), int(w[3]), buf)
+            out.write("%d %s\n" % (r, hexs(buf)))
 
 
 class Lines:
