@@ -1,7 +1,7 @@
 """Missions end to end over UDP: pymavlink ground stations against the unix vehicle
 (micropython firmware/main.py --board unix). Round trips of 1, 100 and 500 items in both
 item forms, clear, partial transfers, the current item, fence and rally, two ground
-stations, a ground station that goes silent, and 50 uploads and downloads through a
+stations (one in control, one flooding list requests), a ground station that goes silent, and 50 uploads and downloads through a
 relay that drops, duplicates and reorders frames."""
 import concurrent.futures
 import time
@@ -223,3 +223,39 @@ def test_lossy_link(vehicle, tmp_path):
     assert stats["dropped"] > 100 and stats["duplicated"] > 100 and stats["delayed"] > 100, stats
     # Clean failures are allowed; a protocol that cannot cope shows as many of them.
     assert total["uploads"] >= 45 and total["downloads"] >= 45, (total, stats)
+
+
+def test_list_spam_cannot_block_the_ground_station_in_control(vehicle):
+    """Operator control on (a passkey): a ground station not in control re-sending
+    MISSION_REQUEST_LIST every 20 ms on another link stops none of the uploads of the
+    one in control, 5 of 5; its downloads are cancelled and told so."""
+    import threading
+
+    p1, p2 = free_udp_port(), free_udp_port()
+    v = vehicle(links=["udpin:127.0.0.1:%d" % p1, "udpin:127.0.0.1:%d" % p2],
+                args=["--set", "operator_passkey=pw"])
+    a = v.gcs(port=p1)
+    b = v.gcs(port=p2, source_system=254)
+    a.mav.change_operator_control_send(1, 0, 0, b"pw")
+    assert recv(a, "CHANGE_OPERATOR_CONTROL_ACK", 5).ack == 0
+    stop = threading.Event()
+    told = []
+
+    def spam():
+        while not stop.is_set():
+            b.mav.mission_request_list_send(1, 1, 0)
+            msg = b.recv_match(type="MISSION_ACK", blocking=True, timeout=0.02)
+            if msg is not None and msg.target_system == 254:
+                told.append(msg.type)
+
+    t = threading.Thread(target=spam, daemon=True)
+    t.start()
+    try:
+        c = MissionClient(a)
+        results = [c.upload(plan(50, tag=k + 1)) for k in range(5)]
+    finally:
+        stop.set()
+        t.join(2)
+    assert results == [ACCEPTED] * 5
+    assert same(c.download(), plan(50, tag=5))
+    assert OPERATION_CANCELLED in told, told
