@@ -67,7 +67,7 @@ DEFAULT_STREAMS = (
 # missions (capacities above; mavstack/services/missions.py, mission_runner.py)
 MISSION_FRAMES = (0, 2, 3, 5, 6)  # MAV_FRAMEs the simulator flies: global, mission, relative alt
 MISSION_COMMANDS = ()  # MAV_CMDs the application flies beyond the seed's NAV/CONDITION/DO set
-MISSION_RETRY_MS = 250  # re-request a missing item after this (--set mission_retry_ms=N)
-MISSION_RETRIES = 5  # then give up with MISSION_ACK OPERATION_CANCELLED
-MISSION_TIMEOUT_MS = 5000  # ... or after this much silence
+MISSION_RETRY_MS = 250  # re-request a missing item after this until the round trip is measured
+MISSION_RETRIES = 5  # re-request time doublings without progress (--set mission_retries=N)
+MISSION_TIMEOUT_MS = 5000  # give up (MISSION_ACK OPERATION_CANCELLED) after this without a new item
 MISSION_JUMP_SLOTS = 16  # DO_JUMP items a mission may hold (one repeat counter each)
