@@ -126,3 +126,55 @@ def test_same_sysid_and_compid_from_another_address_is_refused(vehicle):
     got = _five(boss)
     assert got == dict.fromkeys(got, True), got
     _disarm(boss)
+
+
+LOCKED = """
+import sys
+sys.path.insert(0, "tests/mpy")
+import micropython
+from harness import Bench, Board
+
+class B(Board):
+    OPERATOR_PASSKEY = "pw"
+
+b = Bench(services=("status", "commands"), board=B)
+boss, other = b.gcs(255, 190), b.gcs(255, 191)
+take = boss.frame(5, 1, 0, 0, b"pw")
+beat, beat2 = boss.heartbeat(), other.heartbeat()
+arm, arm2, disarm = boss.command(400, 1.0), other.command(400, 1.0), boss.command(400, 0.0)
+status = b.ep.services["status"]
+got = [0, 0, 0, 0]  # (module globals made under the lock would allocate)
+text = bytearray(50)
+
+def watch(msgid, p):
+    if msgid == 253 and p[1] == 0x4F and p[10] == 0x63:  # "Operator c..."
+        for i in range(50):
+            text[i] = p[1 + i]
+
+b.watch = watch
+micropython.heap_lock()
+try:
+    b.send(beat); b.send(beat2); b.run(2)
+    b.send(arm2); b.run(1)
+    got[0] = b.ack_result
+    b.send(take); b.run(2)
+    b.send(arm2); b.run(1)
+    got[1] = b.ack_result
+    b.send(arm); b.run(1)
+    got[2] = b.ack_result
+    got[3] = status.armed
+    b.send(disarm); b.run(1)
+finally:
+    micropython.heap_unlock()
+print(got[0], got[1], got[2], got[3], bytes(text).rstrip(b"\\0").decode())
+"""
+
+
+def test_taking_and_checking_control_with_the_heap_locked():
+    """A board runs with its heap locked: taking control, its text and the checks ask
+    nothing of the heap."""
+    from conftest import run_mpy
+
+    r = run_mpy(LOCKED)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["2", "2", "0", "True", "Operator", "control:", "GCS", "255/190", "link", "0"]

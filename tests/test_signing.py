@@ -628,6 +628,8 @@ def captured_arm_and_param_set(m):
 
 def replayed_took_effect(watcher, frames):
     """Replay frames from an eavesdropper's socket -> what each did: (armed, SIM_SPEED 9)."""
+    while watcher.recv_match(blocking=False) is not None:
+        pass  # what it heard before (the vehicle writes to every UDP peer)
     for f in frames:
         watcher.write(f)
     nine = recv(watcher, "PARAM_VALUE", 1.5, lambda p: p.param_id == "SIM_SPEED" and p.param_value == 9.0)

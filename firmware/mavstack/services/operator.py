@@ -26,6 +26,8 @@ _ACK_UNSUPPORTED_ENCRYPTION = const(2)
 _ACK_ALREADY_CONTROLLED = const(3)
 _PASSKEY_OFFSET = const(3)
 _PASSKEY_LEN = const(25)
+_TAKEN = b"Operator control: GCS "
+_LINK = b" link "
 
 
 class Operator:
@@ -38,6 +40,7 @@ class Operator:
         self.link = -1  # the index of the link it spoke on
         self.addr = None  # where its datagrams come from (the transport's rx_peer)
         self.seen = 0  # ticks_ms of its last heartbeat
+        self._text = bytearray(_TAKEN + bytes(50 - len(_TAKEN)))  # "... GCS 255/190 link 0"
 
     # allows() and heartbeat() run for frames as they come: attribute compares only, the
     # address compared with == against the object kept when control was taken.
@@ -84,14 +87,22 @@ class Operator:
         # Rare (and it may allocate): the holder's identity, its address kept as is, or
         # as bytes if the transport hands out a buffer it will change in place.
         addr = getattr(link.transport, "rx_peer", None)
-        if isinstance(addr, (bytearray, memoryview)):
+        if isinstance(addr, bytearray) or isinstance(addr, memoryview):
             addr = bytes(addr)
         self.sysid = link.rx.sysid
         self.compid = link.rx.compid
         self.link = link.index
         self.addr = addr
-        self.ep.statustext(NOTICE, "Operator control: GCS %d (component %d, link %d)" % (
-            self.sysid, self.compid, self.link))
+        # Written into a buffer made at start-up: a board may run with its heap locked.
+        t = self._text
+        n = _put(t, len(_TAKEN), self.sysid)
+        t[n] = 0x2F  # "/"
+        n = _put(t, n + 1, self.compid)
+        n = _put(t, _into(t, n, _LINK), self.link)
+        while n < len(t):
+            t[n] = 0
+            n += 1
+        self.ep.statustext(NOTICE, t)
 
     def _passkey_ok(self, p):
         key = self.passkey
@@ -102,6 +113,25 @@ class Operator:
             if p[_PASSKEY_OFFSET + i] != key[i]:
                 return False
         return True
+
+
+def _into(buf, at, text):
+    # buf[at:] = text -> the offset after it
+    for i in range(len(text)):
+        buf[at + i] = text[i]
+    return at + len(text)
+
+
+def _put(buf, at, n):
+    # The decimal digits of 0 <= n < 1000 at buf[at:] -> the offset after them
+    if n >= 100:
+        buf[at] = 0x30 + n // 100
+        at += 1
+    if n >= 10:
+        buf[at] = 0x30 + n // 10 % 10
+        at += 1
+    buf[at] = 0x30 + n % 10
+    return at + 1
 
 
 def on_change_operator_control(ep, link, p, operator):

@@ -37,10 +37,11 @@ class VehicleCommands:
         self.ep = ep
         self.status = status
 
-    def _in_control(self, cmd, prefix):
+    def _in_control(self, cmd, text):
+        # text: a whole constant (joining bytes allocates, and a board may lock its heap)
         if self.ep.allows(cmd.link):
             return True
-        self.status.statustext(WARNING, prefix + b"GCS not in control")
+        self.status.statustext(WARNING, text)
         return False
 
     def arm_disarm(self, cmd):
@@ -50,7 +51,7 @@ class VehicleCommands:
         arm = cmd.int(1)
         if arm != 0 and arm != 1:
             return _DENIED
-        if not self._in_control(cmd, b"Arm: "):
+        if not self._in_control(cmd, b"Arm: GCS not in control"):
             return _DENIED
         return self.status.arm(arm == 1, cmd.finite(2) and cmd.int(2) == _FORCE_ARM)
 
@@ -66,7 +67,7 @@ class VehicleCommands:
             custom = cmd.int(2)
         if base < 0 or base > 255 or custom < 0:
             return _DENIED
-        if not self._in_control(cmd, b"Mode: "):
+        if not self._in_control(cmd, b"Mode: GCS not in control"):
             return _DENIED
         return self.status.set_mode(base, custom)
 
@@ -81,7 +82,7 @@ class VehicleCommands:
             return _ACCEPTED
         if action != _REBOOT and not (action == _SHUTDOWN and hasattr(getattr(self.ep, "board", None), "shutdown")):
             return _DENIED  # a valid request this board cannot carry out
-        if not self._in_control(cmd, b"Reboot: "):
+        if not self._in_control(cmd, b"Reboot: GCS not in control"):
             return _DENIED
         if self.status._reboot:
             # Already on its way (this one's ACK may have been lost): asked again, it keeps
@@ -110,7 +111,7 @@ class VehicleCommands:
     def set_home(self, cmd):
         # param1 1: here (the application's position()); else param5-7 lat, lon, alt (AMSL).
         status = self.status
-        if not self._in_control(cmd, b"Home: "):
+        if not self._in_control(cmd, b"Home: GCS not in control"):
             return _DENIED
         if cmd.finite(1) and cmd.int(1) == 1:
             where = status.position() if status.position is not None else None
