@@ -9,9 +9,15 @@ their bytes, are range-checked by 16-bit halves and converted by small-int arith
 m is the missions.Missions service (its record buffer, frames, extra commands and the
 upload under way); each function keeps within 11 words of locals and stack.
 """
+import gc
+
 from ..compat import const
 from ..fields import u16, i32_cmp, f32_is_nan, f32_to_small
 from ..kernels import copy
+
+# Loading a module from a .mpy leaves the loader's garbage between the code it kept:
+# collect it now, so that what comes next finds room on a small heap.
+gc.collect()
 
 # MAV_MISSION_RESULT
 _ACCEPTED = const(0)

@@ -28,9 +28,15 @@ Nothing here allocates: the window is a bit mask (bit i: item base + i is in) an
 list of request times made once; times are ticks_ms values (small ints) and their
 differences, 32-bit clean. Each function keeps within 11 words of locals and stack.
 """
+import gc
+
 from ..compat import const, ticks_diff
 from ..link import RANK_FILL
 from . import mission_items
+
+# Loading a module from a .mpy leaves the loader's garbage between the code it kept:
+# collect it now, so that what comes next finds room on a small heap.
+gc.collect()
 
 _MSG_REQUEST = const(40)
 _MSG_REQUEST_INT = const(51)
@@ -85,20 +91,17 @@ class Upload:
 
     # --- asking -------------------------------------------------------------------
     def _fill(self, now):
-        """Ask for items not asked yet, as far as the window goes."""
+        """Ask for items not asked yet, as far as the window goes. The first missing item
+        is always asked (a reply, at the link's reply rank); the ones ahead of it are
+        bulk: they wait while the link's byte budget has no room at RANK_FILL (streams
+        and replies go first)."""
         while self.top - self.base < self.window and (
                 self.top < self.end or (self.top == self.end and self.base == self.end)):
-            if not self._ask_ahead():
+            if self.top != self.base and not self.m.t_link.can_send(REQUEST_BYTES, RANK_FILL):
                 return
             self._send(self.top)
             self.sent[self.top % self.window] = now
             self.top += 1
-
-    def _ask_ahead(self):
-        """May one more request go now? The first missing item is always asked (a reply,
-        at the link's reply rank); the ones ahead of it are bulk: they wait while the
-        link's byte budget has no room at RANK_FILL (streams and replies go first)."""
-        return self.top == self.base or self.m.t_link.can_send(REQUEST_BYTES, RANK_FILL)
 
     def _send(self, seq):
         """MISSION_REQUEST_INT (or MISSION_REQUEST) for item seq -> sent."""
@@ -155,9 +158,7 @@ class Upload:
             self.m.t_progress = now
             self.m.t_moved = True
         self.tries = 0
-        if not self.again >> bit & 1:
-            self._sample(ticks_diff(now, self.sent[seq % self.window]))
-        self.rto = self._timeout()
+        self._sample(-1 if self.again >> bit & 1 else ticks_diff(now, self.sent[seq % self.window]))
         self.held |= 1 << bit
         if bit == 0:
             self._slide(now)
@@ -175,21 +176,17 @@ class Upload:
         if self.base > self.end:
             self._finish()
             return
-        self.after = self._behind()
+        # Items in that were asked after the new first missing one: all those after it,
+        # unless it was asked again (then only those asked since: none in yet).
+        self.mark = self.top if self.again & 1 else self.base + 1
+        self.after = 0
+        i = self.mark - self.base
+        while i < self.window:
+            self.after += self.held >> i & 1
+            i += 1
         self._fill(now)
         if self.after >= _FAST:
             self._again(self.base, now)
-
-    def _behind(self):
-        """Items in that were asked after the (new) first missing one: all those after
-        it, unless it was asked again (then only those asked since: none in yet)."""
-        self.mark = self.top if self.again & 1 else self.base + 1
-        n = 0
-        i = self.mark - self.base
-        while i < self.window:
-            n += self.held >> i & 1
-            i += 1
-        return n
 
     def _finish(self):
         m = self.m
@@ -211,50 +208,44 @@ class Upload:
             if self.tries < self.backoffs:
                 self.tries += 1
                 self.rto = self.rto * 2 if self.rto * 2 < self.rto_max else self.rto_max
-            if self.cursor < self.base:
-                self._walk(now)
-            else:
-                self._missing(now)
+            self._resend(now)
 
-    def _missing(self, now):
-        """Ask again for each missing item asked a while ago (rto / 4: the first
-        missing one, and those asked with it)."""
-        seq = self.base
+    def _resend(self, now):
+        """Ask again for each missing item asked a while ago (rto / 4: the first missing
+        one, and those asked with it). Where the peer stands before the first missing
+        item, walk it there: ask from where it stands, in order, items in or not."""
+        seq = self.cursor if self.cursor < self.base else self.base
+        walk = seq < self.base
         while seq < self.top:
-            if not self.held >> (seq - self.base) & 1 and ticks_diff(now, self.sent[seq % self.window]) >= self.rto >> 2:
+            if seq < self.base:
+                self._send(seq)
+            elif walk or (not self.held >> (seq - self.base) & 1
+                          and ticks_diff(now, self.sent[seq % self.window]) >= self.rto >> 2):
                 self._again(seq, now)
             seq += 1
 
-    def _walk(self, now):
-        """The peer stands before the first missing item: ask from there, in order."""
-        seq = self.cursor
-        while seq < self.base:
-            self._send(seq)
-            seq += 1
-        while seq < self.top:
-            self._again(seq, now)
-            seq += 1
-
     def _sample(self, ms):
-        """One round trip, in ms, into the smoothed RTT and its deviation."""
+        """One round trip, in ms (-1: none), into the smoothed RTT and its deviation;
+        the re-request time from them, back-off dropped: srtt + 4 x deviation, and at
+        least a quarter more than srtt (a steady round trip wears the deviation down to
+        nothing, and an item due just then is not lost)."""
         if ms > self.rto_max:
             ms = self.rto_max
-        if self.srtt8 < 0:
+        if ms < 0:
+            pass
+        elif self.srtt8 < 0:
             self.srtt8 = ms << 3
             self.var4 = ms << 1
         else:
             ms -= self.srtt8 >> 3
             self.srtt8 += ms
             self.var4 += (ms if ms >= 0 else -ms) - (self.var4 >> 2)
-
-    def _timeout(self):
         if self.srtt8 < 0:
-            return self.retry_ms
-        # srtt + 4 x deviation, and at least a quarter more than srtt: a steady round trip
-        # wears the deviation down to nothing, and an item due just then is not lost.
-        t = self.srtt8 >> 3
-        t += self.var4 if self.var4 > t >> 2 else t >> 2
-        return self.rto_min if t < self.rto_min else (self.rto_max if t > self.rto_max else t)
+            self.rto = self.retry_ms
+            return
+        ms = self.srtt8 >> 3
+        ms += self.var4 if self.var4 > ms >> 2 else ms >> 2
+        self.rto = self.rto_min if ms < self.rto_min else (self.rto_max if ms > self.rto_max else ms)
 
 
 def _stage(m, p, seq, is_int):
