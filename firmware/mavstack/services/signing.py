@@ -19,7 +19,8 @@ Board settings:
                             our timestamp are refused (60000, at most 5 minutes)
 
 The key persists in storage file "signing_key": key (32), timestamp (8, little-endian:
-the promise below), CRC-16 of both (2). A corrupt file leaves signing off and says so in a STATUSTEXT.
+the promise below), CRC-16 of both (2). A corrupt file leaves signing off and says so in
+a STATUSTEXT.
 List "signing" before "status" in SERVICES: then the boot HEARTBEAT is signed too.
 
 Timestamps (units of 10 us since 2015-01-01, so always past 2^30) are 48-bit and kept
@@ -243,13 +244,17 @@ class Signing:
 
     # --- the stored promise ------------------------------------------------------------
     def _renew(self):
-        """Store a promise a save interval ahead of need: due = ts + interval, promise =
-        due + interval. (Rare: once an interval, or when a frame is ahead of it.)"""
+        """Store a promise a save interval ahead of need. (Rare: once an interval, or
+        when a frame is ahead of it.)"""
+        self._plan()
+        self._save()
+
+    def _plan(self):
+        # due = ts + interval, promise = due + interval
         copy(self._due, self.ts, 0, 6)
         _advance(self._due, self.save_ms)
         copy(self._promise, self._due, 0, 6)
         _advance(self._promise, self.save_ms)
-        self._save()
 
     def stop(self):
         """The vehicle is about to reboot or shut down: store our timestamp itself, so
@@ -292,11 +297,7 @@ class Signing:
         self._sync()
         if _later(self._clk, 0, self.ts, 0):
             copy(self.ts, self._clk, 0, 6)
-        # Saved by the caller (_renew) when storage should know; until then, in RAM.
-        copy(self._due, self.ts, 0, 6)
-        _advance(self._due, self.save_ms)
-        copy(self._promise, self._due, 0, 6)
-        _advance(self._promise, self.save_ms)
+        self._plan()  # stored by the caller when storage should know (_renew)
         for i in range(_STREAMS):
             self._keys[i] = -1
         self.enabled = any(self.key)
