@@ -154,11 +154,11 @@ class Station(threading.Thread):
                 if got.type == 0:
                     self.stats["uploads"] += 1
                     return True
-                if got.type == 5:  # MAV_MISSION_DENIED
+                if got.type == 14:  # MAV_MISSION_DENIED
                     self.stats["denied"] += 1
                     time.sleep(self.rng.uniform(0.1, 0.5))
                     return False
-                if got.type == 14:  # MAV_MISSION_OPERATION_CANCELLED: clean, but counted
+                if got.type == 15:  # MAV_MISSION_OPERATION_CANCELLED: clean, but counted
                     self.stats["cancelled"] += 1
                     return False
                 raise AssertionError("upload: MISSION_ACK %d" % got.type)
@@ -185,11 +185,15 @@ class Station(threading.Thread):
             item = None
             for _ in range(5):
                 self.m.mav.mission_request_int_send(1, 1, seq, 0)
-                item = self.recv(("MISSION_ITEM_INT",), lambda m: m.seq == seq, timeout=1.0)
+                item = self.recv(("MISSION_ITEM_INT", "MISSION_ACK"),
+                                 lambda m: m.get_type() == "MISSION_ACK" or m.seq == seq, timeout=1.0)
                 if item is not None:
                     break
             if item is None:
                 raise AssertionError("download: item %d not sent" % seq)
+            if item.get_type() == "MISSION_ACK":  # the transfer was ended (the other's upload)
+                self.stats["denied"] += 1
+                return None
             if item.x != 473977420 + base + seq:
                 return None  # replaced by the other station's upload meanwhile
         self.m.mav.mission_ack_send(1, 1, 0, 0)
@@ -279,15 +283,17 @@ def soak(storage, seconds, seed=1):
     reader.start()
     try:
         _wait_ready(v, lines)
+        # The stations' sockets are there from the idle lead-in on (a closed port makes
+        # every read of the vehicle's an error), silent until the load starts.
+        stations = [Station("A", ports[0], 255, "SIM_SPEED", 0, seed),
+                    Station("B", ports[1], 254, "SIM_ACCEL", 0, seed + 1)]
+        flood = Flood(ports[2], 0, seed + 2)
         phase[0] = "idle"
         time.sleep(IDLE_S)
         phase[0] = "load"
         start = time.time()
-        until = start + seconds
-        stations = [Station("A", ports[0], 255, "SIM_SPEED", until, seed),
-                    Station("B", ports[1], 254, "SIM_ACCEL", until, seed + 1)]
-        flood = Flood(ports[2], until, seed + 2)
         for t in stations + [flood]:
+            t.until = start + seconds
             t.start()
         for t in stations + [flood]:
             t.join(seconds + 60)
