@@ -1,8 +1,9 @@
 """Missions end to end over UDP: pymavlink ground stations against the unix vehicle
 (micropython firmware/main.py --board unix). Round trips of 1, 100 and 500 items in both
 item forms, clear, partial transfers, the current item, fence and rally, two ground
-stations (one in control, one flooding list requests), a ground station that goes silent, and 50 uploads and downloads through a
-relay that drops, duplicates and reorders frames."""
+stations (and one in control while another floods list requests), a ground station
+that goes silent, and 50 uploads and downloads through a relay that drops, duplicates
+and reorders frames."""
 import concurrent.futures
 import time
 

@@ -1,7 +1,7 @@
 """Real ground stations move missions to and from the unix vehicle: MAVProxy's `wp load`
 and `wp list` with a QGC WPL 110 file, typed on its stdin; MAVSDK's MissionRaw upload
-and download (mission, geofence, rally), and uploads through a lossy relay. A pymavlink ground station on a second link
-checks what the vehicle holds afterwards."""
+and download (mission, geofence, rally), and its uploads through a lossy relay. A
+pymavlink ground station on a second link checks what the vehicle holds afterwards."""
 import gcs_tools
 from gcs_tools import MavProxy, mavsdk_system
 from mission_gcs import MissionClient
