@@ -174,8 +174,10 @@ def run():
     })
 
 
-# Encode's floor: 1.2x the 338k frames/s encode_v2_fps once was.
+# Encode's floor: 1.2x the 338k frames/s encode_v2_fps once was. The portable kernels'
+# floors: what they did before whole frames went to one kernel call.
 ENCODE_FLOOR = 1.2 * 338000
+PORTABLE_FLOORS = {1: 105000, 2: 90000}
 
 
 def floors(r):
@@ -186,7 +188,8 @@ def floors(r):
         ("ingest_v2_fps >= 60% of pymavlink_ingest_v2_fps",
          r["ingest_v2_fps"] >= 0.6 * r["pymavlink_ingest_v2_fps"]),
         ("encode_v2_fps >= %d" % ENCODE_FLOOR, r["encode_v2_fps"] >= ENCODE_FLOOR),
-    ] + bench_wire_c.floors(r)
+    ] + [("ingest_v%d_fps_portable >= %d" % (v, f), r["ingest_v%d_fps_portable" % v] >= f)
+         for v, f in sorted(PORTABLE_FLOORS.items())] + bench_wire_c.floors(r)
 
 
 if __name__ == "__main__":
