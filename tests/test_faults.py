@@ -163,7 +163,8 @@ def kill_loop(script, storage, kills, check, rng, most_s=0.05):
         time.sleep(rng.uniform(0, most_s))
         proc.send_signal(signal.SIGKILL)
         proc.wait()
-        out = (first + proc.stdout.read()).splitlines()
+        # Whole lines only: the kill may cut the last one short ("committed 1" of "committed 12").
+        out = (first + proc.stdout.read()).split("\n")[:-1]
         assert not [line for line in out if "Traceback" in line or "failed" in line], out[-5:]
         last = check(storage, out, last)
         done += 1
