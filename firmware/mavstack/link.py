@@ -4,8 +4,8 @@ one vehicle.
 
 The budget. Every frame a link sends, whoever sends it, is paid from one token bucket
 filled at link.bytes_per_s (in thousandths of a byte, refilled from endpoint.now,
-capped at 200 ms of the link: a burst of answers, twenty command ACKs, fits), so the link never
-carries more than its medium does, bursts of a few hundred bytes aside. A send is
+holding 200 ms of the link: a burst of answers, twenty command ACKs, fits), so the
+link never carries more than its medium does, a bucketful aside. A send is
 ranked; each rank may spend the bucket down to its own floor, so the higher ranks
 always find credit the lower ones left them:
 
@@ -33,15 +33,16 @@ API (allocation-free, 32-bit clean):
 A link with bytes_per_s of 0 (or over _UNPACED) is not budgeted at all.
 
 A sender's share: each of the last _SENDERS (sysid, compid) a link answered has an
-allowance of bytes, full at bytes_per_s / 8 and refilled at bytes_per_s / 16 a second;
-answers it is owed are paid from it too, and one whose allowance is spent is answered at
-RANK_OTHER. So a ground station's bursts (twenty commands, a page of parameter reads)
-go at RANK_REPLY, while a flood from any one source (or a few) soon waits behind
-streams and lists and leaves the reserve below RANK_BULK's floor to other ground
-stations' reads and command ACKs. (A flood that changes its sysid all the time gets
-each new identity's allowance once per slot it takes over.)
+allowance of bytes: bytes_per_s / 16 at first, refilled (smoothly, with the bucket) at
+bytes_per_s / 16 a second up to bytes_per_s / 8. Its answers are paid from it too, and
+one whose allowance is spent is answered at RANK_OTHER. So a ground station's bursts
+(twenty commands, a page of parameter reads) go at RANK_REPLY, while a flood from any
+one source (or a few) soon waits behind streams and lists and leaves the reserve below
+RANK_BULK's floor to other ground stations' reads and command ACKs. (A flood that
+changes its sysid all the time gets each new identity's allowance once per slot it
+takes over.)
 """
-from .compat import const, ticks_diff, ticks_add
+from .compat import const, ticks_diff
 from .parser import Parser
 from .encoder import Encoder
 
@@ -56,16 +57,17 @@ RANK_BULK = const(2)
 RANK_FILL = const(3)
 RANK_OTHER = const(4)
 # Each rank's floor, in thousandths of a byte: a send may take the credit down to it.
-# The gaps between the floors are what each rank keeps for the ones above it: a due
+# The gaps between the floors are what each rank keeps for the ones above it: 256 bytes
+# for answers (a flood's share and another station's answers at once), and a due
 # stream frame (up to 64 bytes) goes at once while a list keeps the credit at its floor.
-_FLOOR = (-128000, 0, 128000, 192000, 256000)
+_FLOOR = (-128000, 0, 256000, 320000, 384000)
 _BURST_MS = const(200)  # the bucket holds 200 ms of the link ...
-_MIN_CAP = const(556000)  # ... or RANK_OTHER's floor and a full MAVLink 2 frame
+_MIN_CAP = const(700000)  # ... or RANK_OTHER's floor and a full MAVLink 2 frame
 _UNPACED = const(5000000)  # B/s: above this a link is not budgeted (and bps * ms stays small)
 _SENDERS = const(8)
-_SHARE_MS = const(250)  # allowances are topped up this often ...
-_SHARE_STEP_DIV = const(64)  # ... by bytes_per_s / 64 (bytes_per_s / 16 a second)
-_SHARE_CAP_DIV = const(8)  # up to bytes_per_s / 8
+_SHARE_RATE_DIV = const(16)  # a sender's allowance fills at bytes_per_s / 16 ...
+_SHARE_CAP_DIV = const(8)  # ... up to bytes_per_s / 8
+_SHARE_START_DIV = const(16)  # a newcomer starts with a second's worth
 
 
 class Link:
@@ -93,12 +95,11 @@ class Link:
         self.tx_held = 0
         self.credit = _cap(self.bytes_per_s)  # a link starts with a full bucket
         self._last = endpoint.now
-        self._share_at = endpoint.now
         self._in_frame = False  # a received frame is being handled
         self._slot = -1  # its sender's place in _who, -1: not looked up yet
         self._rank_now = RANK_REPLY
         self._who = [0] * _SENDERS  # (sysid << 8 | compid) + 1, 0: free
-        self._allow = [0] * _SENDERS  # bytes each may still be answered at RANK_REPLY
+        self._allow = [0] * _SENDERS  # what each may still be answered at RANK_REPLY (1/1000 B)
 
     def poll(self):
         """Read and parse whatever the transport has, without waiting."""
@@ -157,20 +158,22 @@ class Link:
         bps = self.bytes_per_s
         if bps <= 0 or bps > _UNPACED:
             return True
-        if rank < 0:
-            rank = self._auto()
         self._refill()
+        if rank < 0:
+            rank = self._auto(nbytes)
         return self.credit - nbytes * 1000 >= _FLOOR[rank]
 
     def _afford(self, n):
+        bps = self.bytes_per_s
+        budgeted = bps > 0 and bps <= _UNPACED
+        if budgeted:
+            self._refill()
         rank = self.rank
         if rank < 0:
-            rank = self._auto()
+            rank = self._auto(n)
         self._rank_now = rank
-        bps = self.bytes_per_s
-        if bps <= 0 or bps > _UNPACED:
+        if not budgeted:
             return True
-        self._refill()
         if self.credit - n * 1000 >= _FLOOR[rank]:
             return True
         self.tx_held += 1
@@ -190,7 +193,7 @@ class Link:
         if self._rank_now >= RANK_FILL:
             self.tx_low = (self.tx_low + n) & TX_WRAP
         if self._slot >= 0:
-            allow = self._allow[self._slot] - n
+            allow = self._allow[self._slot] - n * 1000
             self._allow[self._slot] = allow if allow > 0 else 0
 
     def _refill(self):
@@ -206,12 +209,11 @@ class Link:
                 dt = cap // bps + 1  # (bps * dt stays below 2^30)
             credit = self.credit + bps * dt
             self.credit = credit if credit < cap else cap
-        if ticks_diff(now, self._share_at) >= 0:
-            self._share_at = ticks_add(now, _SHARE_MS)
-            _top_up(self._allow, self.bytes_per_s)
+            _top_up(self._allow, bps * dt // _SHARE_RATE_DIV, bps * 1000 // _SHARE_CAP_DIV)
 
-    def _auto(self):
-        """The rank of a send that did not say: by the sender of the frame being handled."""
+    def _auto(self, n):
+        """The rank of a send of n bytes that did not say: by the sender of the frame
+        being handled."""
         if not self._in_frame:
             return RANK_REPLY
         op = self.endpoint.operator
@@ -221,13 +223,13 @@ class Link:
             return RANK_REPLY  # the ground station in control
         if self._slot < 0:
             self._slot = self._sender()
-        if self._allow[self._slot] <= 0:
+        if self._allow[self._slot] < n * 1000:
             return RANK_OTHER
         return RANK_REPLY
 
     def _sender(self):
         """The slot of the current sender's allowance (a newcomer takes over the one
-        with the most left: the quietest sender's)."""
+        with the most left, the quietest sender's, and starts with a second's worth)."""
         key = (self.rx.sysid << 8 | self.rx.compid) + 1
         allow = self._allow
         i = 0
@@ -235,11 +237,11 @@ class Link:
         while i < _SENDERS:
             if self._who[i] == key:
                 return i
-            if allow[i] > allow[most] or self._who[i] == 0:
+            if self._who[most] and (self._who[i] == 0 or allow[i] > allow[most]):
                 most = i
             i += 1
         self._who[most] = key
-        allow[most] = self.bytes_per_s // _SHARE_CAP_DIV
+        allow[most] = self.bytes_per_s * 1000 // _SHARE_START_DIV
         return most
 
 
@@ -248,9 +250,7 @@ def _cap(bps):
     return cap if cap > _MIN_CAP else _MIN_CAP
 
 
-def _top_up(allow, bps):
-    step = bps // _SHARE_STEP_DIV
-    cap = bps // _SHARE_CAP_DIV
+def _top_up(allow, step, cap):
     i = 0
     while i < _SENDERS:
         a = allow[i] + step

@@ -67,6 +67,7 @@ class UdpTransport:
         self.rx_overruns = 0
         self.rx_peer = None  # the address that sent the datagram being parsed
         self._n = 0  # write's count for _send (made here: the heap may be locked later)
+        self._cur = None  # the socket _read or _send works on
         self._listen = None
         if mode != "udpin":
             peers = 1
@@ -127,9 +128,16 @@ class UdpTransport:
     # heap on every call) -------------------------------------------------------------
     def readinto(self, buf):
         n = self._read_peers(buf)
-        if not n and self._listen is not None:
+        if not n and self._listen is not None and self._waiting():
             n = self._newcomer(buf)
         return n
+
+    def _waiting(self):
+        """Is a datagram waiting on the listening socket? (Asked on every poll: apart
+        from _newcomer, whose try, loop and locals take a frame state from the heap.)"""
+        for _obj, _ev in (self._poll.ipoll(0) if MICROPYTHON else self._poll.poll(0)):
+            return True
+        return False
 
     def _read_peers(self, buf):
         socks = self._socks
@@ -140,7 +148,8 @@ class UdpTransport:
             if i >= len(socks):
                 i = 0
             if socks[i] is not None:
-                n = self._read(socks[i], buf)
+                self._cur = socks[i]
+                n = self._read(buf)
                 if n:
                     self._next = i + 1  # the others first next time
                     self._rx = i
@@ -151,27 +160,37 @@ class UdpTransport:
             i += 1
         return 0
 
-    def _read(self, sock, buf):
-        try:
-            return (sock.readinto(buf) if MICROPYTHON else sock.recv_into(buf)) or 0
-        except OSError:  # nothing waiting, or the peer's port is closed
-            return 0
+    # _read and _send take the socket in self._cur: one argument more would take their
+    # frame state (a try is three words) over what MicroPython keeps off the heap.
+    if MICROPYTHON:
+
+        def _read(self, buf):
+            try:
+                return self._cur.readinto(buf) or 0
+            except OSError:  # nothing waiting, or the peer's port is closed
+                return 0
+
+    else:
+
+        def _read(self, buf):
+            try:
+                return self._cur.recv_into(buf) or 0
+            except OSError:
+                return 0
 
     def _newcomer(self, buf):
         # Something on the listening socket: an address no peer socket is connected to
         # (or a peer's datagram that came before its socket was). It becomes a peer only
         # if the link finds a valid frame in it (heard).
-        for _obj, _ev in (self._poll.ipoll(0) if MICROPYTHON else self._poll.poll(0)):
-            try:
-                data, addr = self._listen.recvfrom(len(buf))
-            except OSError:
-                return 0
-            self._rx = self._slot_of(addr)
-            self.rx_peer = addr if self._rx < 0 else self._addrs[self._rx]
-            n = len(data)
-            buf[0:n] = data
-            return n
-        return 0
+        try:
+            data, addr = self._listen.recvfrom(len(buf))
+        except OSError:
+            return 0
+        self._rx = self._slot_of(addr)
+        self.rx_peer = addr if self._rx < 0 else self._addrs[self._rx]
+        n = len(data)
+        buf[0:n] = data
+        return n
 
     def _slot_of(self, addr):
         for i in range(len(self._socks)):
@@ -227,24 +246,26 @@ class UdpTransport:
         took = 0
         i = 0
         while i < len(self._socks):
-            if self._live[i] and self._send(self._socks[i], buf) == n:
-                took = n
+            if self._live[i]:
+                self._cur = self._socks[i]
+                if self._send(buf) == n:
+                    took = n
             i += 1
         return took
 
     if MICROPYTHON:
 
-        def _send(self, sock, buf):
+        def _send(self, buf):
             try:
-                return sock.write(buf, self._n) or 0
+                return self._cur.write(buf, self._n) or 0
             except OSError:
                 return 0
 
     else:
 
-        def _send(self, sock, buf):
+        def _send(self, buf):
             try:
-                return sock.send(memoryview(buf)[: self._n])
+                return self._cur.send(memoryview(buf)[: self._n])
             except OSError:
                 return 0
 

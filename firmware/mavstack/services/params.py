@@ -41,7 +41,7 @@ hears changes made by ground stations, commands and reloads.
 from ..compat import const, ticks_diff
 from ..fields import i16, cstr_len
 from ..kernels import zero
-from ..link import RANK_REPLY, RANK_FILL, RANK_AUTO
+from ..link import RANK_BULK, RANK_FILL, RANK_AUTO
 from .param_table import ParamTable, ID_LEN
 from .param_table import _copy4, _move, _put16  # byte moves whose frames fit the C stack
 from .param_table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32, READ_ONLY, REBOOT  # noqa: F401
@@ -149,7 +149,9 @@ class Params(ParamTable):
     def _send_next(self, li, link):
         """Send the next value link li is owed, if its budget pays for it -> sent."""
         answer = self._answers[li] != 0
-        rank = RANK_REPLY if answer else RANK_FILL
+        # Held-back answers level with the streams: never into the reserve a flood of
+        # reads could otherwise take from other ground stations' answers.
+        rank = RANK_BULK if answer else RANK_FILL
         if not link.can_send(_VALUE_FRAME, rank):
             return False
         i = self._owed(li, answer)

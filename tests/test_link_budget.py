@@ -1,0 +1,139 @@
+"""Everything a link sends shares its byte budget: under a flood of requests from
+several system ids (parameter lists, mission lists, data stream requests, PINGs) the
+unix vehicle, budgeted as a 57600 baud radio, sends no more than the radio carries,
+HEARTBEAT keeps its 1 Hz, and another ground station's parameter reads and commands
+are still answered. Real UDP sockets, pymavlink on both sides of the flood."""
+import os
+import socket
+import threading
+import time
+
+os.environ.setdefault("MAVLINK20", "1")
+from pymavlink.dialects.v20 import common as mav  # noqa: E402
+
+BYTES_PER_S = 5760
+FLOOD_SYSIDS = (100, 101, 102, 103, 104)
+
+
+class Flood:
+    """From one address, round robin over several system ids: PARAM_REQUEST_LIST,
+    MISSION_REQUEST_LIST, REQUEST_DATA_STREAM (all streams at 50 Hz) and PING, about
+    `per_s` frames a second, until stopped."""
+
+    def __init__(self, port, per_s=2000):
+        self.port = port
+        self.per_s = per_s
+        self.sent = 0
+        self._stop = threading.Event()
+        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._sock.bind(("127.0.0.1", 0))
+        self._sock.setblocking(False)
+        self._mavs = [mav.MAVLink(None, s, 190) for s in FLOOD_SYSIDS]
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _frame(self, k):
+        m = self._mavs[k % len(self._mavs)]
+        kind = (k // len(self._mavs)) % 4
+        if kind == 0:
+            msg = mav.MAVLink_param_request_list_message(1, 1)
+        elif kind == 1:
+            msg = mav.MAVLink_mission_request_list_message(1, 1, 0)
+        elif kind == 2:
+            msg = mav.MAVLink_request_data_stream_message(1, 1, 0, 50, 1)
+        else:
+            msg = mav.MAVLink_ping_message(k, k & 0xFFFF, 0, 0)
+        return msg.pack(m)
+
+    def _run(self):
+        batch = 20
+        while not self._stop.is_set():
+            for _ in range(batch):
+                try:
+                    self._sock.sendto(self._frame(self.sent), ("127.0.0.1", self.port))
+                except OSError:
+                    pass
+                self.sent += 1
+            self._stop.wait(batch / self.per_s)
+            # (drain what the vehicle writes to the flood's address, so its socket stays open)
+            try:
+                while self._sock.recv(4096):
+                    pass
+            except OSError:
+                pass
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        self._sock.close()
+
+
+class Watch:
+    """The second ground station's view: every frame the vehicle sends to it, counted in
+    bytes, HEARTBEATs timed, answers kept."""
+
+    def __init__(self, m):
+        self.m = m
+        self.bytes = 0
+        self.heartbeats = []
+        self.beat_at = 0
+
+    def pump(self, seconds, want=None):
+        """Read for `seconds` (or until a message matching want arrives) -> it or None,
+        with a HEARTBEAT a second, as a ground station sends them."""
+        deadline = time.time() + seconds
+        while time.time() < deadline:
+            if time.time() >= self.beat_at:
+                self.m.mav.heartbeat_send(6, 8, 0, 0, 0)
+                self.beat_at = time.time() + 1
+            msg = self.m.recv_match(blocking=True, timeout=0.05)
+            if msg is None:
+                continue
+            if msg.get_type() == "BAD_DATA":
+                self.bytes += len(msg.data)
+                continue
+            self.bytes += len(msg.get_msgbuf())
+            if msg.get_srcSystem() != 1:
+                continue
+            if msg.get_type() == "HEARTBEAT":
+                self.heartbeats.append(time.time())
+            if want is not None and want(msg):
+                return msg
+        return None
+
+
+def test_flood_stays_within_the_budget_and_others_are_still_answered(vehicle):
+    v = vehicle(args=["--set", "udp_bytes_per_s=%d" % BYTES_PER_S])
+    m = v.gcs(source_system=250)  # the ground station that is not flooding
+    w = Watch(m)
+    with Flood(v.port) as flood:
+        w.pump(1.5)  # the flood in full swing
+        start_bytes, start = w.bytes, time.time()
+        hb_from = len(w.heartbeats)
+        reads = commands = 0
+        for i in range(4):
+            name = (b"WP_SPEED", b"SIM_GPS_GLITCH_M", b"MOT_SPOOL_TIME_S", b"RTL_LOIT_TIME_S")[i]
+            m.mav.param_request_read_send(1, 1, name, -1)
+            got = w.pump(2.0, lambda msg, name=name: msg.get_type() == "PARAM_VALUE"
+                         and msg.param_id == name.decode() and msg.param_index >= 0)
+            reads += got is not None
+            m.mav.command_long_send(1, 1, 512, 0, 2, 0, 0, 0, 0, 0, 0)  # REQUEST_MESSAGE SYSTEM_TIME
+            ack = w.pump(2.0, lambda msg: msg.get_type() == "COMMAND_ACK" and msg.command == 512)
+            commands += ack is not None and ack.result == 0
+        w.pump(max(0.0, 8.0 - (time.time() - start)))
+        elapsed = time.time() - start
+        rate = (w.bytes - start_bytes) / elapsed
+        beats = w.heartbeats[hb_from:]
+        v.check_alive()
+    assert flood.sent > 10000, flood.sent
+    # Within the budget, and a burst's worth of slack (the bucket holds 200 ms of it).
+    assert rate <= BYTES_PER_S * 1.08, (rate, BYTES_PER_S)
+    assert rate >= BYTES_PER_S * 0.5, rate  # and the link is used, not starved
+    assert reads == 4 and commands == 4, (reads, commands)
+    # HEARTBEAT at 1 Hz: no gap much over a second, about one a second.
+    gaps = [b - a for a, b in zip(beats, beats[1:])]
+    assert len(beats) >= int(elapsed) - 1, (len(beats), elapsed)
+    assert max(gaps) < 1.6, gaps
