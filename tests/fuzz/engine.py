@@ -53,6 +53,7 @@ class Fuzz:
                       "foreign_batches": 0, "signed_frames": 0}
         self.seq = 0
         self.last = None
+        self.work = None  # the run's scratch directory, removed after a clean run
 
     # --- one input --------------------------------------------------------------------
     def one(self, data):
@@ -162,6 +163,9 @@ class Fuzz:
         return out
 
     def finish(self, status):
+        """Report and end the process (libFuzzer does not hand control back)."""
+        if status == 0 and self.work:
+            shutil.rmtree(self.work, ignore_errors=True)
         out = self.report()
         if self.report_path:
             with open(self.report_path, "w") as f:
@@ -236,6 +240,7 @@ def main(argv):
             import mavstack.parser  # noqa: F401
             from fuzz import rig  # noqa: F401
     fz = Fuzz(storage, args.seed, args.seconds, args.report)
+    fz.work = work if not args.storage else None
     rng = random.Random(args.seed)
     pool = seeds(rng)
 
@@ -244,7 +249,7 @@ def main(argv):
             fz.one(bytes(data))
         except Exception:
             traceback.print_exc()
-            crash = os.path.join(os.path.dirname(args.report or work + "/x"), "fuzz-crash.bin")
+            crash = os.path.join(os.path.dirname(os.path.abspath(args.report or "x")), "fuzz-crash.bin")
             with open(crash, "wb") as f:
                 f.write(fz.last or b"")
             print("fuzz: failing input saved to %s (%d bytes)" % (crash, len(fz.last or b"")), flush=True)
@@ -259,13 +264,12 @@ def main(argv):
         atheris.Setup([sys.argv[0], corpus, "-max_total_time=%d" % (args.seconds + 60), "-seed=%d" % args.seed,
                        "-max_len=4096", "-artifact_prefix=%s/" % work, "-print_final_stats=0",
                        "-close_fd_mask=0"], test_one)
-        atheris.Fuzz()
+        atheris.Fuzz()  # returns only if libFuzzer stops first (its own time limit)
     else:
         for data in pool:
             test_one(data)
         while True:
             test_one(mutate(rng, rng.choice(pool), pool))
-    shutil.rmtree(work, ignore_errors=True)
     fz.finish(0)
 
 

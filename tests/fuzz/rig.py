@@ -34,6 +34,10 @@ class ExchangeFailed(AssertionError):
     """A real protocol exchange did not succeed between fuzzed batches."""
 
 
+class Refused(Exception):
+    """The vehicle refused an upload cleanly (it may be tried again)."""
+
+
 def _board():
     import unix
 
@@ -203,7 +207,19 @@ class FuzzVehicle:
         if self.signing.enabled:
             raise ExchangeFailed("SETUP_SIGNING with a zero key, signed, left signing on")
 
-    def mission_exchange(self, n=3):
+    def mission_exchange(self, n=3, attempts=3):
+        """A small upload and its download. A DENIED or cancelled upload (a transfer the fuzz
+        left open, a reply the budget dropped) is tried again after a pause, as a ground
+        station would; failing every attempt is a failure."""
+        for attempt in range(attempts):
+            try:
+                return self._mission_exchange(n)
+            except Refused as e:
+                if attempt == attempts - 1:
+                    raise ExchangeFailed("mission upload refused %d times: %s" % (attempts, e))
+                self.quiesce()
+
+    def _mission_exchange(self, n):
         base = self.rng.randrange(1000)
         items = [(i, 3, 16, 0, 1, 0.0, 2.0, 0.0, float(base), 473977420 + i * 1000 + base, 85455940, 20.0 + i)
                  for i in range(n)]
@@ -213,6 +229,8 @@ class FuzzVehicle:
             if got is None:
                 raise ExchangeFailed("mission upload: the vehicle went silent")
             if got.get_type() == "MISSION_ACK":
+                if got.type in (14, 15):  # MAV_MISSION_DENIED, OPERATION_CANCELLED
+                    raise Refused("MISSION_ACK %d" % got.type)
                 if got.type != 0:
                     raise ExchangeFailed("mission upload: MISSION_ACK %d" % got.type)
                 break
