@@ -351,6 +351,34 @@ def test_stored_promise_floor_and_stop(tmp_path):
     assert seen == [4] and svc3.replayed <= 1
 
 
+def test_shutdown_stores_the_timestamp_before_the_board_powers_off(tmp_path):
+    """A board's shutdown() may cut the power before main.py's last word: the timestamp
+    itself is stored when the command is accepted, not the promise two intervals on."""
+    from mavstack.endpoint import Shutdown
+
+    st = tmp_path / "st"
+    at_power_off = []
+
+    class Board:
+        NAME = "bench"
+
+        @staticmethod
+        def shutdown():
+            at_power_off.append(stored(st))
+
+    b = Bench(services=("signing", "status", "commands"), storage=str(st), board=Board)
+    svc = b.ep.services["signing"]
+    g = Gcs(b)
+    setup_signing(g, initial=10**9)
+    assert stored(st) >= 10**9 + 2 * 60000 * 100
+    g.use_key(KEY, timestamp=int.from_bytes(bytes(svc.ts), "little") + 1)
+    g.send(g.mav.command_long_encode(1, 1, 246, 0, 2, 0, 0, 0, 0, 0, 0))
+    with pytest.raises(Shutdown):
+        g.run(300)
+    ts = int.from_bytes(bytes(svc.ts), "little")
+    assert at_power_off and ts - 100 <= at_power_off[0] <= ts
+
+
 def test_frames_far_ahead_refused_once_the_time_of_day_is_known(tmp_path):
     b, svc = bench(tmp_path / "st")
     g = Gcs(b)

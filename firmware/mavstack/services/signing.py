@@ -37,13 +37,14 @@ promise: no timestamp above it was accepted or sent. It is renewed a save interv
 ahead of need (stored = timestamp + 2 intervals, saved again once the timestamp is within
 an interval of it); a frame accepted above it (a ground station ahead of us) is saved
 before it is let through. A commanded reboot or shutdown stores the timestamp itself
-(stop(), called by main.py), so that ground stations go on at once. At boot the stored
-value becomes both our timestamp and a floor: a newly heard stream's first frame must
-be newer than it (and, as the spec says, no more than a minute behind our timestamp).
-So no frame accepted before a restart, or older than one, is accepted after it. After a
-power loss the floor may be up to two intervals ahead of the wall clock: ground stations
-that take the vehicle's timestamp when it is ahead (the spec's rule; pymavlink and the
-MAVLink C library do) are in again with the first signed frame they hear from it.
+(stop(): when it is accepted, and by main.py at the end), so that ground stations go on
+at once. At boot the stored value becomes both our timestamp and a floor: a newly heard
+stream's first frame must be newer than it (and, as the spec says, no more than a minute
+behind our timestamp). So no frame accepted before a restart, or older than one, is
+accepted after it. After a power loss the floor may be up to two intervals ahead of the
+wall clock: ground stations that take the vehicle's timestamp when it is ahead (the
+spec's rule; pymavlink and the MAVLink C library do) are in again with the first signed
+frame they hear from it.
 
 Frames from the future. Once the vehicle knows the time of day, a frame stamped more
 than a minute (SIGNING_MAX_AHEAD_MS) ahead of our timestamp (which is at least the time
@@ -258,11 +259,15 @@ class Signing:
 
     def stop(self):
         """The vehicle is about to reboot or shut down: store our timestamp itself, so
-        that after the restart a ground station going on from where it was is newer."""
+        that after the restart a ground station going on from where it was is newer.
+        Called when the command is accepted (a board's shutdown() may cut the power) and
+        again by main.py at the end; in between, a frame accepted above it is stored as
+        ever, and the few frames sent need no new promise (due an interval on)."""
         if not self.enabled:
             return
         copy(self._promise, self.ts, 0, 6)
         copy(self._due, self.ts, 0, 6)
+        _advance(self._due, self.save_ms)
         self._save()
 
     # --- key ---------------------------------------------------------------------------

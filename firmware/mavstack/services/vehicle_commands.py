@@ -92,6 +92,11 @@ class VehicleCommands:
             self.status.statustext(CRITICAL, b"Reboot: disarm first")
             return _DENIED
         self.status.reboot(action)
+        # What must outlive the restart is stored now: a board's shutdown() may cut the
+        # power before main.py's last word. (A dict look-up: the heap may be locked.)
+        signing = self.ep.services.get("signing")
+        if signing is not None:
+            signing.stop()
         return _ACCEPTED
 
     def autopilot_capabilities(self, cmd):
