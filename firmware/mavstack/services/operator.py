@@ -84,8 +84,8 @@ class Operator:
         return _ACK_OK
 
     def _take(self, link):
-        # Rare (and it may allocate): the holder's identity, its address kept as is, or
-        # as bytes if the transport hands out a buffer it will change in place.
+        # The holder's identity; its address kept as is (an object the transport does not
+        # change), or copied if it is a buffer that could change in place.
         addr = getattr(link.transport, "rx_peer", None)
         if isinstance(addr, bytearray) or isinstance(addr, memoryview):
             addr = bytes(addr)
