@@ -83,6 +83,22 @@ def test_second_ground_station_from_another_address_is_served_too(vehicle):
     v.check_alive()
 
 
+def test_one_shot_tools_back_to_back_are_each_answered(vehicle):
+    # Each run of a tool such as mavctl is a new address that is gone a moment later:
+    # more of them than the link has peer slots, within a few seconds, all answered (a
+    # peer whose port is closed frees its slot).
+    v = vehicle()
+    v.gcs()  # up and answering
+    for i in range(7):
+        m = v.gcs(source_system=255, wait=False)
+        m.mav.param_request_read_send(1, 1, b"WP_SPEED", -1)
+        assert recv(m, "PARAM_VALUE", timeout=3) is not None, i
+        m.close()
+        v._gcs.remove(m)
+        time.sleep(0.3)  # (a tool takes longer than that to start)
+    v.check_alive()
+
+
 def test_transport_on_cpython_adopts_only_valid_frames_and_writes_to_every_peer():
     from pymavlink.dialects.v20 import common as mav
     from mavstack.dialects import common

@@ -34,9 +34,11 @@ class UdpTransport:
     being parsed is rx_peer), never with anything else: junk from anywhere changes
     nothing. Every frame is written to every peer heard from in the last
     _PEER_QUIET_MS, and always to the one heard last, so a ground station that only
-    listens keeps its stream. With all slots taken, a newcomer takes over the slot of
-    a peer silent that long; while every slot is busy with a live ground station a
-    newcomer's frames are still handled, but it hears nothing back.
+    listens keeps its stream; a peer whose port is closed (a write fails: a one-shot
+    tool that finished) gets no more until it speaks again. A newcomer takes a free
+    slot, or one that gets no writes, or the slot of a peer silent that long; while
+    every slot is busy with a live ground station its frames are still handled, but
+    it hears nothing back.
 
     Traffic goes through sockets connect()ed to the peers (one each), so that reads and
     writes are the stream calls, which allocate nothing. udpin also keeps an unconnected
@@ -150,6 +152,8 @@ class UdpTransport:
             if socks[i] is not None:
                 self._cur = socks[i]
                 n = self._read(buf)
+                if n < 0:
+                    n = self._closed(i)
                 if n:
                     self._next = i + 1  # the others first next time
                     self._rx = i
@@ -162,21 +166,32 @@ class UdpTransport:
 
     # _read and _send take the socket in self._cur: one argument more would take their
     # frame state (a try is three words) over what MicroPython keeps off the heap.
+    # -> bytes read, 0 if none are waiting, -1 on an error: the peer's port is closed
+    # (the kernel's "port unreachable" comes back to a connected socket).
     if MICROPYTHON:
 
         def _read(self, buf):
             try:
-                return self._cur.readinto(buf) or 0
-            except OSError:  # nothing waiting, or the peer's port is closed
-                return 0
+                return self._cur.readinto(buf) or 0  # None: nothing waiting
+            except OSError:
+                return -1
 
     else:
 
         def _read(self, buf):
             try:
-                return self._cur.recv_into(buf) or 0
-            except OSError:
+                return self._cur.recv_into(buf)
+            except BlockingIOError:
                 return 0
+            except OSError:
+                return -1
+
+    def _closed(self, i):
+        """Peer i's port is closed (a one-shot tool that finished): on udpin it gets no
+        more writes until it speaks again, and its slot may go to a newcomer -> 0."""
+        if self._listen is not None:
+            self._live[i] = 0
+        return 0
 
     def _newcomer(self, buf):
         # Something on the listening socket: an address no peer socket is connected to
@@ -222,13 +237,14 @@ class UdpTransport:
             i += 1
 
     def _adopt(self, now):
-        """A slot for rx_peer: a free one, else the one silent longest if that is longer
-        than _PEER_QUIET_MS -> its index, -1 if every slot has a live ground station."""
+        """A slot for rx_peer: a free one, or one that gets no writes, else the one
+        silent longest if that is longer than _PEER_QUIET_MS -> its index, -1 if every
+        slot has a live ground station."""
         if self._listen is None or self.rx_peer is None:
             return -1
         pick = -1
         for i in range(len(self._socks)):
-            if self._socks[i] is None:
+            if self._socks[i] is None or not self._live[i]:
                 pick = i
                 break
             quiet = ticks_diff(now, self._heard_at[i])
@@ -250,6 +266,8 @@ class UdpTransport:
                 self._cur = self._socks[i]
                 if self._send(buf) == n:
                     took = n
+                else:
+                    self._closed(i)
             i += 1
         return took
 
