@@ -16,6 +16,10 @@ EARTH_RADIUS = 6378137.0
 SIM_SENSORS = 1 | 2 | 4 | 8 | 32 | 1024 | 2048 | 4096 | 8192 | 16384 | 32768
 
 
+def _int16(x):
+    return max(-32768, min(32767, round(x)))
+
+
 class Simulator:
     def __init__(self, endpoint):
         self.ep = endpoint
@@ -134,7 +138,9 @@ class Simulator:
         mx = 210.0 * math.cos(self.heading)
         my = -210.0 * math.sin(self.heading)
         mz = 430.0
-        imu = (round(ax), round(ay), round(az), round(p * 1000), round(q * 1000), round(r * 1000),
+        # Rates in mrad/s fill int16 fields: a turn made at once (a new waypoint's bearing)
+        # would overflow them, so they saturate, as a real gyro's range does.
+        imu = (round(ax), round(ay), round(az), _int16(p * 1000), _int16(q * 1000), _int16(r * 1000),
                round(mx), round(my), round(mz))
         tm.scaled_imu(*imu)
         tm.raw_imu(*imu)

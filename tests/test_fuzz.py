@@ -74,3 +74,21 @@ def test_fuzz(tmp_path):
     assert r["frames"] >= 50 * FUZZ_SECONDS, r
     assert r["exchanges"] >= max(1, FUZZ_SECONDS // 10), r
     assert r["foreign_batches"] >= 1, r
+
+
+def test_sharp_turn_in_auto_keeps_the_vehicle_running(tmp_path):
+    # Found by the fuzzer: the simulator turns to a new waypoint's bearing at once, and the
+    # yaw rate it published (~157 rad/s) overflowed SCALED_IMU's int16 (struct.error out
+    # of app.tick stops the vehicle).
+    v = FuzzVehicle(tmp_path / "st")
+    north, south = 473977420 + 20000, 473977420 - 20000  # 220 m either side of home
+    v.upload([(0, 3, 16, 0, 1, 0.0, 2.0, 0.0, 0.0, north, 85455940, 20.0),
+              (1, 3, 16, 0, 1, 0.0, 2.0, 0.0, 0.0, south, 85455940, 20.0)])
+    v.params.set("SIM_SPEED", 30.0)
+    status = v.ep.services["status"]
+    from mavstack.services.status import MODE_AUTO
+
+    status.armed = True
+    status.mode |= MODE_AUTO
+    for _ in range(3000):  # 60 s: out to the first waypoint, then the turn back
+        v.bench.run(1, 20)

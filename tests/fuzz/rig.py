@@ -207,6 +207,27 @@ class FuzzVehicle:
         if self.signing.enabled:
             raise ExchangeFailed("SETUP_SIGNING with a zero key, signed, left signing on")
 
+    def upload(self, items):
+        """Items (seq, frame, command, current, autocontinue, p1..p4, x, y, z) as the vehicle
+        asks for them; Refused on DENIED or cancelled, ExchangeFailed on anything else."""
+        n = len(items)
+        kinds = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
+        got = self.ask("mission_count", (1, 1, n, 0), kinds)
+        for _ in range(4 * n + 8):
+            if got is None:
+                raise ExchangeFailed("mission upload: the vehicle went silent")
+            if got.get_type() == "MISSION_ACK":
+                if got.type in (14, 15):  # MAV_MISSION_DENIED, OPERATION_CANCELLED
+                    raise Refused("MISSION_ACK %d" % got.type)
+                if got.type != 0:
+                    raise ExchangeFailed("mission upload: MISSION_ACK %d" % got.type)
+                return
+            seq, frame, cmd, cur, auto, p1, p2, p3, p4, x, y, z = items[got.seq]
+            # The vehicle asks again for an item it did not get: no resend here.
+            self.send("mission_item_int", 1, 1, seq, frame, cmd, cur, auto, p1, p2, p3, p4, x, y, z, 0)
+            got = self.wait(kinds, ms=3000)
+        raise ExchangeFailed("mission upload: no MISSION_ACK")
+
     def mission_exchange(self, n=3, attempts=3):
         """A small upload and its download. A DENIED or cancelled upload (a transfer the fuzz
         left open, a reply the budget dropped) is tried again after a pause, as a ground
@@ -223,23 +244,7 @@ class FuzzVehicle:
         base = self.rng.randrange(1000)
         items = [(i, 3, 16, 0, 1, 0.0, 2.0, 0.0, float(base), 473977420 + i * 1000 + base, 85455940, 20.0 + i)
                  for i in range(n)]
-        kinds = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
-        got = self.ask("mission_count", (1, 1, n, 0), kinds)
-        for _ in range(4 * n + 8):
-            if got is None:
-                raise ExchangeFailed("mission upload: the vehicle went silent")
-            if got.get_type() == "MISSION_ACK":
-                if got.type in (14, 15):  # MAV_MISSION_DENIED, OPERATION_CANCELLED
-                    raise Refused("MISSION_ACK %d" % got.type)
-                if got.type != 0:
-                    raise ExchangeFailed("mission upload: MISSION_ACK %d" % got.type)
-                break
-            seq, frame, cmd, cur, auto, p1, p2, p3, p4, x, y, z = items[got.seq]
-            # The vehicle asks again for an item it did not get: no resend here.
-            self.send("mission_item_int", 1, 1, seq, frame, cmd, cur, auto, p1, p2, p3, p4, x, y, z, 0)
-            got = self.wait(kinds, ms=3000)
-        else:
-            raise ExchangeFailed("mission upload: no MISSION_ACK")
+        self.upload(items)
         count = self.ask("mission_request_list", (1, 1, 0), "MISSION_COUNT", lambda m: m.mission_type == 0)
         if count is None or count.count != n:
             raise ExchangeFailed("mission download: count %s, uploaded %d" % (count, n))
