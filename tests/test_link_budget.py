@@ -137,3 +137,145 @@ def test_flood_stays_within_the_budget_and_others_are_still_answered(vehicle):
     gaps = [b - a for a, b in zip(beats, beats[1:])]
     assert len(beats) >= int(elapsed) - 1, (len(beats), elapsed)
     assert max(gaps) < 1.6, gaps
+
+
+# --- the bucket and its ranks, in-process on CPython (the same code runs on the boards) --
+
+class Mem:
+    """An in-memory transport that takes everything (the budget is what holds back)."""
+
+    name = "mem"
+
+    def __init__(self, bytes_per_s):
+        self.bytes_per_s = bytes_per_s
+        self.inbox = bytearray()
+        self.out = bytearray()
+
+    def readinto(self, buf):
+        n = min(len(buf), len(self.inbox))
+        buf[:n] = self.inbox[:n]
+        del self.inbox[:n]
+        return n
+
+    def write(self, buf, n):
+        self.out += bytes(buf[:n])
+        return n
+
+    def close(self):
+        pass
+
+
+def _endpoint(bytes_per_s=BYTES_PER_S):
+    from mavstack.dialects import common
+    from mavstack.endpoint import Endpoint
+
+    ep = Endpoint(common, 1, 1)
+    ep.poll(1000)
+    link = ep.add_link(Mem(bytes_per_s))
+    return ep, link
+
+
+def _heartbeat(link):
+    off = link.begin()
+    link.txbuf[off:off + 9] = bytes((0, 0, 0, 0, 2, 0, 0, 3, 3))
+    return link.send(0)
+
+
+def test_ranks_spend_the_bucket_down_to_their_floors_in_order():
+    from mavstack.link import RANK_VITAL, RANK_REPLY, RANK_BULK, RANK_FILL, RANK_OTHER, RANK_AUTO
+
+    ep, link = _endpoint()
+    assert link.credit == 1152000  # a full bucket: 200 ms of the link, in 1/1000 bytes
+    frame = None
+    left = {}
+    for rank in (RANK_OTHER, RANK_FILL, RANK_BULK, RANK_REPLY, RANK_VITAL):
+        link.rank = rank
+        while True:  # at one instant: nothing refills
+            before = link.tx_bytes
+            if not _heartbeat(link):
+                break
+            frame = link.tx_bytes - before
+        left[rank] = link.credit // 1000
+        assert not link.can_send(frame, rank)
+    link.rank = RANK_AUTO
+    # Each rank spends what the ones below it left, down to its own floor (less than a
+    # frame above it), HEARTBEAT a little into debt.
+    floors = {RANK_OTHER: 384, RANK_FILL: 320, RANK_BULK: 256, RANK_REPLY: 0, RANK_VITAL: -128}
+    for rank, floor in floors.items():
+        assert floor <= left[rank] < floor + frame, (rank, left)
+    assert link.tx_held == 5  # one refusal per rank, counted
+    assert len(link.transport.out) == 1152 - left[RANK_VITAL]
+    # Time refills it at the link's rate (when next asked): 100 ms is 576 bytes.
+    ep.poll(1100)
+    assert link.can_send(frame, RANK_BULK) and not link.can_send(500, RANK_OTHER)
+    assert link.credit // 1000 == left[RANK_VITAL] + 576
+
+
+def test_a_refused_frame_gives_its_sequence_number_back():
+    from mavstack.link import RANK_OTHER, RANK_AUTO
+
+    ep, link = _endpoint()
+    link.rank = RANK_OTHER
+    while _heartbeat(link):
+        pass
+    seq = link.tx.seq
+    assert not _heartbeat(link) and link.tx.seq == seq  # nothing sent, no gap for the peer
+    link.rank = RANK_AUTO
+    assert _heartbeat(link)  # (at REPLY it goes, with the next number)
+    assert link.tx.seq == (seq + 1) & 0xFF
+
+
+def test_over_ten_seconds_a_busy_link_sends_its_budget_and_no_more():
+    from mavstack.link import RANK_FILL, RANK_AUTO
+
+    ep, link = _endpoint()
+    now = 1000
+    for _ in range(10000):  # 10 s of 1 ms polls, something always waiting at every rank
+        now += 1
+        ep.poll(now)
+        link.rank = RANK_FILL
+        while _heartbeat(link):
+            pass
+        link.rank = RANK_AUTO
+        _heartbeat(link)
+    assert len(link.transport.out) <= BYTES_PER_S * 10 + 1152 + 128
+    assert len(link.transport.out) >= BYTES_PER_S * 10 * 0.99
+
+
+def test_a_flooding_sender_falls_to_the_last_rank_and_another_is_still_answered():
+    from pymavlink.dialects.v20 import common as mav_common
+
+    ep, link = _endpoint()
+    answered = {}
+
+    def answer(link, p):  # an answer to every PING, ranked by its sender (RANK_AUTO)
+        off = link.begin()
+        link.txbuf[off:off + 14] = bytes(14)
+        key = link.rx.sysid
+        before = link.tx_bytes
+        link.send(4)
+        answered[key] = answered.get(key, 0) + link.tx_bytes - before  # bytes
+
+    ep.on(4, answer)
+    flood = mav_common.MAVLink(None, 100, 190)
+    other = mav_common.MAVLink(None, 200, 190)
+    now = 1000
+    asked = 0
+    for k in range(5000):  # 5 s: 20 requests a ms from one sender, one a second from another
+        now += 1
+        for _ in range(20):
+            link.transport.inbox += mav_common.MAVLink_ping_message(k, 0, 0, 0).pack(flood)
+        if k % 1000 == 500:
+            link.transport.inbox += mav_common.MAVLink_ping_message(k, 0, 0, 0).pack(other)
+            asked += 1
+        ep.poll(now)
+        # Bulk traffic keeps the bucket at its floor, as streams and lists do.
+        link.rank = 3
+        while _heartbeat(link):
+            pass
+        link.rank = -1
+    assert answered.get(200) == asked * 13  # every one answered (13-byte frames)
+    # The flood: its allowance (a second's worth to start, then 1/16 of the link), not
+    # the link's 28,800 bytes; what the bucket's floors leave it as RANK_OTHER is nothing
+    # here, as the bulk traffic keeps the bucket below them.
+    assert 0 < answered[100] <= (5 + 1) * BYTES_PER_S // 16 + 13
