@@ -76,18 +76,20 @@ class Relay:
 
 class LossyRelay(Relay):
     """Disturbs a frame with probability `rate`, both ways: drops it, duplicates it, or
-    holds it back `delay` seconds (so that it arrives out of order)."""
+    holds it back `delay` seconds (so that it arrives out of order). Frames whose
+    message id is in `spare` pass undisturbed."""
 
-    def __init__(self, vehicle_port, rate=0.2, delay=(0.001, 0.006), seed=1, drop_only=False):
+    def __init__(self, vehicle_port, rate=0.2, delay=(0.001, 0.006), seed=1, drop_only=False, spare=()):
         self.rate = rate
         self.delay = delay
         self.drop_only = drop_only
+        self.spare = spare
         self.stats = {"frames": 0, "dropped": 0, "duplicated": 0, "delayed": 0}
         Relay.__init__(self, vehicle_port, seed)
 
     def forward(self, way, sock, data, addr):
         self.stats["frames"] += 1
-        if self.rng.random() < self.rate:
+        if self.rng.random() < self.rate and not (self.spare and msgid(data) in self.spare):
             what = 0 if self.drop_only else self.rng.randrange(3)
             if what == 0:
                 self.stats["dropped"] += 1

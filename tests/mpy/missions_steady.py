@@ -19,7 +19,7 @@ altitudes down to -400 m. The mission store is seeded with a generation just bel
 2^30, so the commits of the round carry it past 2^30; a second store, seeded at
 0xC000FFFF, loads and commits under the same check.
 
-Prints `ok requested=0 uploads=5 items=2N+5 requests=2N+13 gen=XXXXXXXX gen_store=XXXXXXXX`
+Prints `ok requested=0 uploads=5 items=2N+5 requests=2N+17 gen=XXXXXXXX gen_store=XXXXXXXX`
 (the generations reached, hex), or what went wrong: `fail requested=B` followed by
 the bytes each stage asked the heap for (frame states of functions over 11 words
 included) and the rest of the `ok` line, when only that check failed.
@@ -245,11 +245,11 @@ class Ground:
     def abandoned(self):
         seen = self.reqs_seen
         self.b.send(self.count3)
-        # Items 0 and 1 asked (the last one waits for them), asked again after 250, 500,
-        # 1000, 2000 and 2000 ms (no round trip measured yet; backing off), then
-        # OPERATION_CANCELLED 5 s after the start.
+        # Items 0 and 1 asked (the last one waits for them), asked again after 250 and
+        # 500 ms, then every 1000 (no round trip measured yet; backing off to the
+        # ceiling), then OPERATION_CANCELLED 5 s after the start.
         self.b.run(5100)
-        if self.reqs_seen != seen + 10 or self.ack_type != 15:
+        if self.reqs_seen != seen + 14 or self.ack_type != 15:
             return 7000 + self.reqs_seen - seen
         return 0
 

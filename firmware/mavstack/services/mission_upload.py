@@ -12,15 +12,20 @@ while the later ones come, and only what is missing is asked again:
   keep their order on a radio or UDP link: it, or its request, was lost);
 - when its time is up: a retransmission timeout from the measured round trip (request
   to item: smoothed RTT + 4 x its deviation, or + RTT / 4 if more; no sample from an
-  item asked twice),
+  item asked twice) since it was asked and since it became the first missing one
+  (items asked together queue behind each other: a later one is late, not lost),
   between rto_min and rto_max, doubled on each expiry without progress (at most
   `backoffs` times in a row). Before the first sample it is retry_ms.
 The last item is asked for only once all the others are in: a ground station may take
-that request as the end of its upload (MAVProxy stops answering after it). Ground
-stations that serve requests only in order (MAVSDK answers the item after the last one
-it sent, or an earlier one, and ignores requests ahead of that) are caught up with: when
-time is up while the item after the last one received is below the first missing
-one, the items are asked again from there, in order, held ones too.
+that request as the end of its upload (MAVProxy stops answering after it). Some ground
+stations serve requests only in order: MAVSDK answers a request for the item after the
+last one it sent, or for an earlier one, and ignores requests ahead of that; after a
+lost frame it stands behind the items asked ahead, and it counts repeated requests
+against its own retries. (Where its request was lost it ignores those after it; asking
+again for all that is missing, in order, serves it.) When time is up and the item after
+the last one received is below the first missing one, the peer is taken to be such a
+one: from then on the upload asks one item at a time, always the one after the last
+the peer sent (held ones too), as a lock-step upload would.
 An upload is cancelled (OPERATION_CANCELLED, ERROR to MAVLink 1) only when no new item
 has come for the service's timeout_ms (missions.py), however many requests that took.
 
@@ -51,7 +56,7 @@ REQUEST_BYTES = const(17)
 
 
 class Upload:
-    def __init__(self, m, window=8, retry_ms=250, rto_min=20, rto_max=2000, backoffs=5):
+    def __init__(self, m, window=8, retry_ms=250, rto_min=20, rto_max=1000, backoffs=5):
         self.m = m  # the missions service: the transfer's link, peer and store are its
         self.window = window if 0 < window <= 16 else 8  # the bit masks stay below 2^16
         self.sent = [0] * self.window  # when item seq was last asked for: slot seq % window
@@ -67,11 +72,13 @@ class Upload:
         self.again = 0  # bit i: item base + i was asked more than once (no RTT sample)
         self.after = 0  # items asked after base's last request that came without it
         self.mark = 0  # the first item asked after base's last request
-        self.cursor = 0  # the item after the last one received: where the peer stands
+        self.cursor = 0  # the item after the last new one received: where the peer stands
         self.reach = 0  # the item after the furthest one received since the transfer began
+        self.strict = False  # the peer serves requests only in order (see tick)
         self.srtt8 = -1  # smoothed round trip, ms * 8 (-1: no sample yet)
         self.var4 = 0  # its mean deviation, ms * 4
         self.rto = retry_ms
+        self.heard = 0  # ticks of the last move of base: the timer runs from it too
         self.tries = 0  # expiries since the last new item
         self.current = -1  # the item sent with current=1, -2: keep the current one
 
@@ -83,9 +90,11 @@ class Upload:
         self.mark = first + 1
         self.end = self.m.t_end
         self.held = self.again = self.after = self.tries = 0
+        self.strict = False
         self.current = -1 if first == 0 and keep == 0 else -2
         self.srtt8 = -1
         self.rto = self.retry_ms
+        self.heard = self.m.ep.now
         store.begin(keep)
         self._fill(self.m.ep.now)
 
@@ -130,9 +139,14 @@ class Upload:
         """Item seq from the uploader, of the plan type under upload."""
         if seq >= self.top or seq < self.first:
             return  # not asked for: ignored
-        self.cursor = seq + 1
         if seq < self.base or self.held >> (seq - self.base) & 1:
-            return  # a copy of one already in
+            # A copy of one already in: late copies must not move the cursor back, but
+            # one a peer that serves in order sent when asked does (it stands there).
+            if self.strict:
+                self.cursor = seq + 1
+                self._ask_next(self.m.ep.now)
+            return
+        self.cursor = seq + 1
         if self._take(link, p, seq):
             self._got(seq, self.m.ep.now)
 
@@ -162,12 +176,15 @@ class Upload:
         self.held |= 1 << bit
         if bit == 0:
             self._slide(now)
+        elif self.strict:
+            self._ask_next(now)
         elif seq >= self.mark:
             self.after += 1  # asked after the first missing one, and here before it
             if self.after >= _FAST:
                 self._again(self.base, now)
 
     def _slide(self, now):
+        self.heard = now
         while self.held & 1:
             self.held >>= 1
             self.again >>= 1
@@ -184,6 +201,9 @@ class Upload:
         while i < self.window:
             self.after += self.held >> i & 1
             i += 1
+        if self.strict:
+            self._ask_next(now)
+            return
         self._fill(now)
         if self.after >= _FAST:
             self._again(self.base, now)
@@ -202,33 +222,60 @@ class Upload:
 
     # --- time ---------------------------------------------------------------------
     def tick(self, now):
-        if self.top == self.base:
+        if self.strict:
+            if ticks_diff(now, self.heard) >= self.rto:
+                self._back_off()
+                self._ask_next(now)
+        elif self.top == self.base:
             self._fill(now)  # nothing asked yet: the link had no room
-        elif ticks_diff(now, self.sent[self.base % self.window]) >= self.rto:
-            if self.tries < self.backoffs:
-                self.tries += 1
-                self.rto = self.rto * 2 if self.rto * 2 < self.rto_max else self.rto_max
-            self._resend(now)
+        elif (ticks_diff(now, self.sent[self.base % self.window]) >= self.rto
+              and ticks_diff(now, self.heard) >= self.rto):
+            self._back_off()
+            if self.cursor < self.base:
+                # The peer stands before the first missing item: it serves only in
+                # order. One request at a time now, each for the item after the last
+                # one it sent.
+                self.strict = True
+                self._ask_next(now)
+            else:
+                self._resend(now)
+
+    def _back_off(self):
+        if self.tries < self.backoffs:
+            self.tries += 1
+            self.rto = self.rto * 2 if self.rto * 2 < self.rto_max else self.rto_max
 
     def _resend(self, now):
         """Ask again for each missing item asked a while ago (rto / 4: the first missing
-        one, and those asked with it). Where the peer stands before the first missing
-        item, walk it there: ask from where it stands, in order, items in or not."""
-        seq = self.cursor if self.cursor < self.base else self.base
-        walk = seq < self.base
+        one, and those asked with it)."""
+        seq = self.base
         while seq < self.top:
-            if seq < self.base:
-                self._send(seq)
-            elif walk or (not self.held >> (seq - self.base) & 1
-                          and ticks_diff(now, self.sent[seq % self.window]) >= self.rto >> 2):
+            if not self.held >> (seq - self.base) & 1 and ticks_diff(now, self.sent[seq % self.window]) >= self.rto >> 2:
                 self._again(seq, now)
             seq += 1
 
+    def _ask_next(self, now):
+        """Serving in order: ask for the item after the last one the peer sent, or for
+        the first missing one if that comes first (ahead of it the peer answers nothing)."""
+        seq = self.cursor if self.cursor < self.base else self.base
+        if seq > self.end:
+            return
+        self.heard = now
+        if seq >= self.base:
+            if seq < self.top:
+                self.again |= 1  # asked before: its round trip is not timed
+            self.top = seq + 1 if seq >= self.top else self.top
+            self.sent[seq % self.window] = now
+        self._send(seq)
+
     def _sample(self, ms):
-        """One round trip, in ms (-1: none), into the smoothed RTT and its deviation;
-        the re-request time from them, back-off dropped: srtt + 4 x deviation, and at
-        least a quarter more than srtt (a steady round trip wears the deviation down to
-        nothing, and an item due just then is not lost)."""
+        """One round trip, in ms, into the smoothed RTT and its deviation, and the
+        re-request time from them: srtt + 4 x deviation, and at least a quarter more
+        than srtt (a steady round trip wears the deviation down to nothing, and an item
+        due just then is not lost), back-off dropped. -1: an item asked more than once
+        came, which times nothing: the backed-off time is halved back toward that (as it
+        was doubled on each expiry), so a queue of re-requests longer than the
+        re-request time cannot keep growing, nor one lost frame keep it long."""
         if ms > self.rto_max:
             ms = self.rto_max
         if ms < 0:
@@ -240,13 +287,13 @@ class Upload:
             ms -= self.srtt8 >> 3
             self.srtt8 += ms
             self.var4 += (ms if ms >= 0 else -ms) - (self.var4 >> 2)
+        t = self.srtt8 >> 3
+        t += self.var4 if self.var4 > t >> 2 else t >> 2
         if self.srtt8 < 0:
-            self.rto = self.retry_ms
-            return
-        ms = self.srtt8 >> 3
-        ms += self.var4 if self.var4 > ms >> 2 else ms >> 2
-        self.rto = self.rto_min if ms < self.rto_min else (self.rto_max if ms > self.rto_max else ms)
-
+            t = self.retry_ms
+        if ms < 0 and t < self.rto >> 1:
+            t = self.rto >> 1
+        self.rto = self.rto_min if t < self.rto_min else (self.rto_max if t > self.rto_max else t)
 
 def _stage(m, p, seq, is_int):
     """Check item seq and write its record into the staging slot -> MAV_MISSION_RESULT."""

@@ -123,7 +123,7 @@ class Missions:
 
     def __init__(self, storage, capacities=(500, 100, 20), frames=(0, 2, 3, 5, 6), retry_ms=250,
                  retries=5, timeout_ms=5000, jump_slots=16, commands=(), window=8, rto_min=20,
-                 rto_max=2000):
+                 rto_max=1000):
         # (Few attributes: on a small heap a bigger instance dict may not find room.)
         self.stores = [None, None, None]
         for t in range(3):
@@ -532,7 +532,7 @@ def create(ep):
         commands=getattr(board, "MISSION_COMMANDS", ()),
         window=ep.setting("MISSION_WINDOW", 8),
         rto_min=ep.setting("MISSION_RTO_MIN_MS", 20),
-        rto_max=ep.setting("MISSION_RTO_MAX_MS", 2000),
+        rto_max=ep.setting("MISSION_RTO_MAX_MS", 1000),
     ))
     if ep.setting("MISSION_RUNNER", True):
         from .mission_runner import MissionRunner
