@@ -93,7 +93,7 @@ class Link:
         self.rank = RANK_AUTO
         self.tx_low = 0
         self.tx_held = 0
-        self.credit = _cap(self.bytes_per_s)  # a link starts with a full bucket
+        self.credit = _cap(self.bytes_per_s) if self.bytes_per_s <= _UNPACED else 0  # full
         self._last = endpoint.now
         self._in_frame = False  # a received frame is being handled
         self._slot = -1  # its sender's place in _who, -1: not looked up yet
@@ -209,7 +209,7 @@ class Link:
                 dt = cap // bps + 1  # (bps * dt stays below 2^30)
             credit = self.credit + bps * dt
             self.credit = credit if credit < cap else cap
-            _top_up(self._allow, bps * dt // _SHARE_RATE_DIV, bps * 1000 // _SHARE_CAP_DIV)
+            _top_up(self._allow, bps * dt // _SHARE_RATE_DIV, bps // _SHARE_CAP_DIV * 1000)
 
     def _auto(self, n):
         """The rank of a send of n bytes that did not say: by the sender of the frame
@@ -241,7 +241,7 @@ class Link:
                 most = i
             i += 1
         self._who[most] = key
-        allow[most] = self.bytes_per_s * 1000 // _SHARE_START_DIV
+        allow[most] = self.bytes_per_s // _SHARE_START_DIV * 1000  # (below 2^30 up to _UNPACED)
         return most
 
 
