@@ -111,7 +111,8 @@ def run():
     _timed(out, 0.0, ("upload", "download"), items)
     _timed(out, 0.1, ("upload",), items)
     out["mission_upload_500_lossy_bound_s"] = round(2 * out["mission_upload_500_s"], 2)
-    out["mission_upload_500_lossy_ratio"] = round(out["mission_upload_500_lossy_s"] / out["mission_upload_500_s"], 2)
+    out["mission_upload_500_lossy_ratio"] = round(out["mission_upload_500_lossy_s"]
+                                                  / out["mission_upload_500_s"], 2)
     failed, seconds = _cancelled(RUNS_20, 0.2)
     out["mission_cancelled_200_lossy20"] = failed
     out["mission_uploads_200_lossy20"] = RUNS_20

@@ -110,7 +110,8 @@ def push(m, now):
                                * (link.bytes_per_s if link.bytes_per_s < _PUSH_MAX_RATE else _PUSH_MAX_RATE)
                                // (1000 * _PUSH_SHARE))
         m.t_credit = credit if credit < 4 * _ITEM_FRAME_BYTES else 4 * _ITEM_FRAME_BYTES
-    while m.t_credit >= _ITEM_FRAME_BYTES and m.t_seq <= m.t_end and link.can_send(_ITEM_FRAME_BYTES, RANK_FILL):
+    while (m.t_credit >= _ITEM_FRAME_BYTES and m.t_seq <= m.t_end
+           and link.can_send(_ITEM_FRAME_BYTES, RANK_FILL)):
         m.t_credit -= _ITEM_FRAME_BYTES
         m.t_progress = now
         m._send_item(link, m.t_store, m.t_seq, m.t_int)

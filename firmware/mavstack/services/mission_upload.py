@@ -250,7 +250,8 @@ class Upload:
         one, and those asked with it)."""
         seq = self.base
         while seq < self.top:
-            if not self.held >> (seq - self.base) & 1 and ticks_diff(now, self.sent[seq % self.window]) >= self.rto >> 2:
+            if (not self.held >> (seq - self.base) & 1
+                    and ticks_diff(now, self.sent[seq % self.window]) >= self.rto >> 2):
                 self._again(seq, now)
             seq += 1
 

@@ -327,8 +327,9 @@ class Missions:
 
     def _late_count(self, link, p, count):
         up = self.upload
-        return (self.state == _UPLOAD and self._is_peer(link) and up.first == 0 and count == self.t_count
-                and (up.base > 0 or up.held != 0) and (p[4] if self.has_type else 0) == self.t_store.mission_type)
+        return (self.state == _UPLOAD and self._is_peer(link) and up.first == 0
+                and count == self.t_count and (up.base > 0 or up.held != 0)
+                and (p[4] if self.has_type else 0) == self.t_store.mission_type)
 
     def _on_item(self, link, p):
         # MISSION_ITEM_INT and the seed's MISSION_ITEM share their layout but for x and y.
