@@ -56,3 +56,60 @@ def test_same_script_on_cpython():
     _, _, counts = parse(r.stdout.strip())
     for msgid, hz in RATES.items():
         assert abs(counts[msgid] - hz * TICKS // 1000) <= 1, (msgid, counts[msgid])
+
+
+REQUEST_ALL_LOCKED = r"""
+import sys, micropython
+sys.path.insert(0, "tests/mpy")
+from harness import Bench
+
+class Board:
+    DEFAULT_STREAMS = ((30, 4),)  # ATTITUDE only
+
+b = Bench(services=("status", "streams"), board=Board)
+g = b.gcs()
+every = g.frame(66, 10, 1, 1, 0, 1)  # REQUEST_DATA_STREAM: all streams at 10 Hz, start
+stop = g.frame(66, 0, 1, 1, 0, 0)
+b.run(1000)
+
+
+def asked(n):
+    k = 0
+    while k < n:  # a station asking again and again, on a board whose heap is locked
+        b.send(every)
+        b.run(50)
+        k += 1
+    return b.seen[67]
+
+
+def stopped():
+    b.send(stop)
+    b.run(200)
+
+
+locked = 0
+micropython.heap_lock()
+try:
+    locked = asked(20)
+    stopped()
+finally:
+    micropython.heap_unlock()
+before = b.seen[30]
+b.run(1000)
+print("locked data_stream=%d attitude_after_stop=%d" % (locked, b.seen[30] - before))
+b.send(every)
+b.run(1000)
+print("unlocked streams=%d" % len(b.ep.services["streams"].links[0].streams))
+"""
+
+
+def test_request_all_streams_on_a_locked_heap_is_answered_not_fatal():
+    # Messages never streamed before need a few objects; with the heap locked they are
+    # refused one by one (not streamed), the request is still answered, nothing stops.
+    r = run_mpy(REQUEST_ALL_LOCKED, timeout=60)
+    assert r.returncode == 0, r.stdout + r.stderr
+    lines = r.stdout.split("\n")
+    locked = dict(w.split("=") for w in lines[0].split()[1:])
+    assert int(locked["data_stream"]) == 20  # every request answered
+    assert int(locked["attitude_after_stop"]) == 0  # and stop still stops them all
+    assert int(lines[1].split("=")[1]) > 5  # unlocked, the group's messages get their streams

@@ -146,6 +146,7 @@ class Streams:
         self.links = []
         self._phase = 0
         self._rescale_at = 0
+        self._guard = _MemoryGuard()
 
     def attach(self, ep):
         self.ep = ep
@@ -178,10 +179,19 @@ class Streams:
     def _stream(self, ls, msgid, create=True):
         s = ls.by_id.get(msgid)
         if s is None and create and self.ep.has(msgid):
-            info = self.ep.dialect.CRC_LEN[msgid]
-            s = Stream(msgid, self.ep.producers.get(msgid), (info >> 16) + 12)
-            ls.by_id[msgid] = s
-            ls.streams.append(s)
+            with self._guard:  # a message streamed for the first time: a few objects
+                s = self._new_stream(ls, msgid)
+            if self._guard.failed:  # the heap is locked (or full): not streamed
+                if ls.by_id.get(msgid) is not None and len(ls.streams) != len(ls.by_id):
+                    del ls.by_id[msgid]  # (the list could not take it)
+                return None
+        return s
+
+    def _new_stream(self, ls, msgid):
+        info = self.ep.dialect.CRC_LEN[msgid]
+        s = Stream(msgid, self.ep.producers.get(msgid), (info >> 16) + 12)
+        ls.by_id[msgid] = s
+        ls.streams.append(s)
         return s
 
     def _apply(self, ls, s, now):
@@ -298,18 +308,26 @@ class Streams:
         link.rank = RANK_AUTO
 
     def _set_group(self, link, stream_id, rate):
-        """The messages of a group this endpoint produces at rate Hz (0: off) -> False if
-        the group is unknown."""
-        ids = group(stream_id)
-        if ids is None:
-            return False
-        rate = 1000000 // rate if rate else -1  # the interval
+        """The messages of a group (0: all) this endpoint produces at rate Hz (0: off)
+        -> False if the group is unknown. Walks GROUPS in place: a hostile or busy ground
+        station may send this at any rate, and a heap-locked board must not need a list
+        for it."""
+        interval = 1000000 // rate if rate else -1
+        known = False
+        g = 0
+        while g < len(GROUPS):
+            if stream_id == 0 or GROUPS[g][0] == stream_id:
+                known = True
+                self._set_ids(link, GROUPS[g][1], interval)
+            g += 1
+        return known
+
+    def _set_ids(self, link, ids, interval):
         i = 0
         while i < len(ids):
             if ids[i] in self.ep.producers:
-                self.set_interval(link, ids[i], rate)
+                self.set_interval(link, ids[i], interval)
             i += 1
-        return True
 
     # --- the scheduler (every tick; allocation-free) -------------------------------
     # In small functions with few locals: MicroPython takes a frame state of more than
@@ -369,6 +387,22 @@ class Streams:
             if s.interval_us > 0 and s.live and s.send is not None:
                 demand += s.cost * 1000000 // s.interval_us
         return demand
+
+
+class _MemoryGuard:
+    """`with guard:` a MemoryError in the block ends there (guard.failed says so): a
+    request that would need a new object on a board whose heap is locked is refused,
+    not fatal. (MicroPython raises MemoryError without allocating.)"""
+
+    def __init__(self):
+        self.failed = False
+
+    def __enter__(self):
+        self.failed = False
+
+    def __exit__(self, kind, e, tb):
+        self.failed = kind is MemoryError
+        return self.failed
 
 
 # The per-tick path as plain functions (no self: one local fewer, so the loop keeps its
