@@ -22,9 +22,9 @@ stations serve requests only in order: MAVSDK answers a request for the item aft
 last one it sent, or for an earlier one, and ignores requests ahead of that; after a
 lost frame it stands behind the items asked ahead, and it counts repeated requests
 against its own retries. (Where its request was lost it ignores those after it; asking
-again for all that is missing, in order, serves it.) When time is up and the item after
-the last one received is below the first missing one, the peer is taken to be such a
-one: from then on the upload asks one item at a time, always the one after the last
+again for all that is missing, in order, serves it.) When time is up twice in a row
+while the item after the last one received is below the first missing one, the peer is
+taken to be such a one: from then on the upload asks one item at a time, always the one after the last
 the peer sent (held ones too), as a lock-step upload would.
 An upload is cancelled (OPERATION_CANCELLED, ERROR to MAVLink 1) only when no new item
 has come for the service's timeout_ms (missions.py), however many requests that took.
@@ -231,10 +231,10 @@ class Upload:
         elif (ticks_diff(now, self.sent[self.base % self.window]) >= self.rto
               and ticks_diff(now, self.heard) >= self.rto):
             self._back_off()
-            if self.cursor < self.base:
-                # The peer stands before the first missing item: it serves only in
-                # order. One request at a time now, each for the item after the last
-                # one it sent.
+            if self.cursor < self.base and self.tries > 1:
+                # Twice nothing came while the peer stands before the first missing
+                # item (once may be a late item): it serves only in order. One request
+                # at a time now, each for the item after the last one it sent.
                 self.strict = True
                 self._ask_next(now)
             else:
