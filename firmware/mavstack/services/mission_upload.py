@@ -24,8 +24,8 @@ lost frame it stands behind the items asked ahead, and it counts repeated reques
 against its own retries. (Where its request was lost it ignores those after it; asking
 again for all that is missing, in order, serves it.) When time is up twice in a row
 while the item after the last one received is below the first missing one, the peer is
-taken to be such a one: from then on the upload asks one item at a time, always the one after the last
-the peer sent (held ones too), as a lock-step upload would.
+taken to be such a one: from then on the upload asks one item at a time, always the
+one after the last the peer sent (held ones too), as a lock-step upload would.
 An upload is cancelled (OPERATION_CANCELLED, ERROR to MAVLink 1) only when no new item
 has come for the service's timeout_ms (missions.py), however many requests that took.
 
