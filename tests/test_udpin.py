@@ -103,11 +103,11 @@ def test_transport_on_cpython_adopts_only_valid_frames_and_writes_to_every_peer(
     from pymavlink.dialects.v20 import common as mav
     from mavstack.dialects import common
     from mavstack.endpoint import Endpoint
-    from mavstack.transport import UdpTransport
+    from mavstack.transport_udpin import UdpServer
 
     port = free_udp_port()
     ep = Endpoint(common, 1, 1)
-    t = UdpTransport("udpin", "127.0.0.1", port)
+    t = UdpServer("127.0.0.1", port)
     link = ep.add_link(t)
     heard = []
     ep.on(0, lambda link, p: heard.append(link.transport.rx_peer))

@@ -84,10 +84,10 @@ class Udp:
     def __init__(self, b, port):
         import socket
 
-        from mavstack.transport import UdpTransport
+        from mavstack.transport_udpin import UdpServer
 
         self.port = port
-        b.ep.add_link(UdpTransport("udpin", "127.0.0.1", self.port))
+        b.ep.add_link(UdpServer("127.0.0.1", self.port))
         vehicle = socket.getaddrinfo("127.0.0.1", self.port)[0][-1]
         self.a = _peer(socket, vehicle)
         self.b = _peer(socket, vehicle)
