@@ -102,11 +102,9 @@ def run():
 
 
 def floors(r):
-    return [
-        ("ingest_v%d_fps >= 0.1 x C's c_ingest_v%d_fps, same run (ratio %.3f)" % (v, v, r["ingest_v%d_ratio_c" % v]),
-         r["ingest_v%d_ratio_c" % v] >= 0.1)
-        for v in (1, 2)
-    ]
+    text = "ingest_v%d_fps >= 0.1 x C's c_ingest_v%d_fps, same run (ratio %.3f)"
+    return [(text % (v, v, r["ingest_v%d_ratio_c" % v]), r["ingest_v%d_ratio_c" % v] >= 0.1)
+            for v in (1, 2)]
 
 
 if __name__ == "__main__":
