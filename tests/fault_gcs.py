@@ -71,8 +71,10 @@ class Gcs:
         return None
 
     def upload(self, items, mission_type=0):
-        """-> "accepted" (the vehicle said so), "refused" (it said no: the old plan stands),
-        or "unsure" (the last word was lost: old or new, never a mix)."""
+        """-> "accepted" (the vehicle said so), "refused" (it said no before taking any item:
+        the old plan stands), or "unsure" (items went and the last word was lost or was a
+        NACK that may answer a stray copy of an item after the end: old or new, never a
+        mix)."""
         mav = self.m.mav
         kinds = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
         got = self.ask(lambda: mav.mission_count_send(1, 1, len(items), mission_type), kinds)
@@ -81,8 +83,10 @@ class Gcs:
         while True:
             if got is None:
                 silent += 1
-                if last_sent is None or silent > 4:
-                    return "unsure" if last_sent == len(items) - 1 else "refused"
+                if last_sent is None:
+                    return "refused"
+                if silent > 4:
+                    return "unsure"
                 self._item(last_sent, items[last_sent], mission_type)  # the answer may be lost
                 got = self.recv(kinds, timeout=self.wait)
                 continue
@@ -91,9 +95,11 @@ class Gcs:
                 if getattr(got, "mission_type", 0) != mission_type:
                     got = self.recv(kinds, timeout=self.wait)
                     continue
-                return "accepted" if got.type == MISSION_ACK_ACCEPTED else "refused"
+                if got.type == MISSION_ACK_ACCEPTED:
+                    return "accepted"
+                return "refused" if last_sent is None else "unsure"
             if got.seq >= len(items):
-                return "refused"
+                return "unsure"
             self._item(got.seq, items[got.seq], mission_type)
             last_sent = got.seq
             got = self.recv(kinds, timeout=self.wait * 2)
