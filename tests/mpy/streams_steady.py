@@ -3,7 +3,8 @@
     streams_steady.py VERSION BYTES_PER_S TICKS [SCALE [bench]]
 
 An endpoint with the commands and streams services on the in-memory link
-(tests/mpy/harness.py), ten streams at 1..50 Hz, a simulated clock that starts
+(tests/mpy/harness.py), ten streams at 1..50 Hz, a REQUEST_DATA_STREAM every 100
+ticks (a group none of them is in, stopped), a simulated clock that starts
 5 s before ticks_ms wraps (rates multiplied by SCALE, to overload a slow link).
 After a warm-up, TICKS ticks run between
 micropython.heap_lock() and heap_unlock() (on CPython, without the lock).
@@ -69,10 +70,17 @@ class State:
         self.us = 0  # spent polling
         self.stack = 0  # bytes the polls asked of the heap (counted runs)
         self.app = 0  # ... and the slot setters
+        # A ground station's REQUEST_DATA_STREAM every 100 ticks (RAW_CONTROLLER, stop: a
+        # group none of the measured messages is in), handled on the counted path too.
+        self.request = b.gcs().frame(66, 0, 1, 1, 4, 0)
+        self.k = 0
 
 
 def poll(s):
     b = s.b
+    s.k += 1
+    if s.k % 100 == 0:
+        b.send(s.request)
     b.now = ticks_add(b.now, 1)
     t0 = ticks_us()
     b.ep.poll(b.now)

@@ -179,20 +179,27 @@ class Streams:
     def _stream(self, ls, msgid, create=True):
         s = ls.by_id.get(msgid)
         if s is None and create and self.ep.has(msgid):
-            with self._guard:  # a message streamed for the first time: a few objects
-                s = self._new_stream(ls, msgid)
-            if self._guard.failed:  # the heap is locked (or full): not streamed
-                if ls.by_id.get(msgid) is not None and len(ls.streams) != len(ls.by_id):
-                    del ls.by_id[msgid]  # (the list could not take it)
-                return None
+            s = self._create(ls, msgid)
         return s
+
+    def _create(self, ls, msgid):
+        """A message streamed for the first time: a few objects -> its Stream, None if
+        the heap is locked (or full): then it is not streamed. (Apart from _stream,
+        which every request runs: the with block's words would put its frame state on
+        the heap.)"""
+        with self._guard:
+            self._new_stream(ls, msgid)
+        if self._guard.failed:
+            if ls.by_id.get(msgid) is not None and len(ls.streams) != len(ls.by_id):
+                del ls.by_id[msgid]  # (the list could not take it)
+            return None
+        return ls.by_id.get(msgid)
 
     def _new_stream(self, ls, msgid):
         info = self.ep.dialect.CRC_LEN[msgid]
         s = Stream(msgid, self.ep.producers.get(msgid), (info >> 16) + 12)
         ls.by_id[msgid] = s
         ls.streams.append(s)
-        return s
 
     def _apply(self, ls, s, now):
         want = s.requested_us if s.requested_us else s.default_us
@@ -309,18 +316,20 @@ class Streams:
 
     def _set_group(self, link, stream_id, rate):
         """The messages of a group (0: all) this endpoint produces at rate Hz (0: off)
-        -> False if the group is unknown. Walks GROUPS in place: a hostile or busy ground
-        station may send this at any rate, and a heap-locked board must not need a list
-        for it."""
-        interval = 1000000 // rate if rate else -1
-        known = False
+        -> False if the group is unknown. The groups are walked in place, in functions
+        of few locals: a busy or hostile ground station may send this at any rate, and
+        it must ask nothing of the heap (a locked board has none to give)."""
+        if stream_id != 0 and group(stream_id) is None:
+            return False
+        self._set_groups(link, stream_id, 1000000 // rate if rate else -1)
+        return True
+
+    def _set_groups(self, link, stream_id, interval):
         g = 0
         while g < len(GROUPS):
             if stream_id == 0 or GROUPS[g][0] == stream_id:
-                known = True
                 self._set_ids(link, GROUPS[g][1], interval)
             g += 1
-        return known
 
     def _set_ids(self, link, ids, interval):
         i = 0
