@@ -74,6 +74,7 @@ def test_fuzz(tmp_path):
     assert r["frames"] >= 50 * FUZZ_SECONDS, r
     assert r["exchanges"] >= max(1, FUZZ_SECONDS // 10), r
     assert r["foreign_batches"] >= 1, r
+    assert r["signed_frames"] >= 1, r
 
 
 def test_sharp_turn_in_auto_keeps_the_vehicle_running(tmp_path):

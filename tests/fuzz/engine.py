@@ -9,7 +9,8 @@ An input's first byte picks how it is read:
     0  raw bytes straight into the parser (the seed corpus: valid frames of every message)
     1  structured frames: valid CRC, random field values, from a generator seeded by the input
     2  structured frames with raw input bytes spliced between them
-    3  structured frames all aimed at another vehicle: nothing stored or in force may change
+    3  structured frames all aimed at another vehicle, or (signing on) aimed at this one
+       but unsigned or signed with a wrong key: nothing stored or in force may change
 With atheris installed the inputs come from libFuzzer, guided by coverage of the stack;
 otherwise from a seeded mutator over the same corpus. Either way a report (JSON:
 frames, batches, exchanges, reboots, seconds, fuzz_frames_per_s) is written at the end;
@@ -50,7 +51,7 @@ class Fuzz:
         self.start = time.time()
         self.next_exchange = self.start + EXCHANGE_EVERY_S
         self.stats = {"frames": 0, "raw_bytes": 0, "batches": 0, "exchanges": 0, "reboots": 0,
-                      "foreign_batches": 0, "signed_frames": 0}
+                      "foreign_batches": 0, "forged_batches": 0, "signed_frames": 0}
         self.seq = 0
         self.last = None
         self.work = None  # the run's scratch directory, removed after a clean run
@@ -99,10 +100,13 @@ class Fuzz:
         rng = random.Random(data)
         n = 1 + data[1] % MAX_FRAMES if len(data) > 1 else 1
         splice = data[2:] if mode == 2 else b""
+        # Mode 3 with signing on: half the time the frames are aimed at this vehicle but
+        # unsigned or signed with a wrong key, which must change nothing just the same.
+        forged = mode == 3 and v.signing.enabled and rng.random() < 0.5
         for _ in range(n):
-            key, stamp = self._signature(rng)
+            key, stamp = self._forged(rng) if forged else self._signature(rng)
             self.seq += 1
-            f = v.structured.frame(rng, self.seq, foreign=(mode == 3), key=key, stamp=stamp)
+            f = v.structured.frame(rng, self.seq, foreign=(mode == 3 and not forged), key=key, stamp=stamp)
             if splice and rng.random() < 0.3:
                 k = rng.randrange(len(splice) + 1)
                 f = (splice[:k] + f) if rng.random() < 0.5 else (f[:rng.randrange(len(f))] + splice[:k] + f)
@@ -110,7 +114,16 @@ class Fuzz:
             v.poll(1, rng.choice((0, 1, 1, 2, 5)))
         self.stats["frames"] += n
         if mode == 3:
-            self.stats["foreign_batches"] += 1
+            self.stats["forged_batches" if forged else "foreign_batches"] += 1
+
+    def _forged(self, rng):
+        """Unsigned, or signed with a key that is not the one in force."""
+        if rng.random() < 0.3:
+            return None, 0
+        key = bytearray(self.v.signing.key)
+        key[rng.randrange(32)] ^= 1 << rng.randrange(8)
+        ts = int.from_bytes(bytes(self.v.signing.ts), "little")
+        return bytes(key), (ts + rng.randrange(1, 10 ** 6)) & ((1 << 48) - 1)
 
     def _signature(self, rng):
         """With signing on: mostly frames signed with the key in force (fresh, replayed or
@@ -137,9 +150,11 @@ class Fuzz:
         if signing:
             allowed.add("signing_key")  # the periodic timestamp save
         if set(files) - allowed:
-            raise self.inv.Broken("frames aimed at another vehicle changed storage: %s" % files)
+            raise self.inv.Broken("frames aimed at another vehicle, or not signed with the key in force, "
+                                  "changed storage: %s" % files)
         if self.inv.state(self.v) != held:
-            raise self.inv.Broken("frames aimed at another vehicle changed parameters, plans or key")
+            raise self.inv.Broken("frames aimed at another vehicle, or not signed with the key in force, "
+                                  "changed parameters, plans or key")
 
     def exchanges(self):
         v = self.v
