@@ -68,9 +68,6 @@ def test_heap_constant(run):
     assert len(used) == 1, sorted(used)
 
 
-@pytest.mark.xfail(strict=True, reason="every REQUEST_DATA_STREAM asks for ~390 bytes of heap since the "
-                   "groups are walked in place (Streams._set_group's locals put its frame state on the heap): "
-                   "a flood of them moves mem_total() by ~1.2 MB/s")
 def test_mem_total_moves_only_on_rare_events_under_load(run):
     # Under the load the rare events (parameter sets, uploads, new ground stations,
     # stream requests) may ask for heap; the steady traffic may not. Bound: what the
