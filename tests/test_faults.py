@@ -320,16 +320,6 @@ def populated(tmp_path_factory):
     return storage
 
 
-READONLY_BOOT = pytest.mark.xfail(strict=True, reason="read-only storage: MissionStore opens its slot files "
-                                  "r+b at start-up, OSError 30 (EROFS) escapes missions.create and the vehicle "
-                                  "does not start")
-FULL_UPLOAD = pytest.mark.xfail(strict=True, reason="mission upload with storage full: OSError 27 (EFBIG) from "
-                                "MissionStore.begin escapes the MISSION_COUNT handler and stops the vehicle")
-OLD_VALUE = pytest.mark.xfail(strict=True, reason="PARAM_SET with storage full is answered with the new value; "
-                              "the failed autosave says 'params not saved' only later (wanted: the old value "
-                              "and a STATUSTEXT)")
-
-
 @pytest.fixture
 def faulty(populated, tmp_path):
     """faulty(mode) -> (vehicle, Gcs) on a copy of the populated storage, full or read-only."""
@@ -372,7 +362,7 @@ def _still_working(v, g):
     assert same_items(g.download(), OLD_PLAN)
 
 
-@pytest.mark.parametrize("mode", ["full", pytest.param("readonly", marks=READONLY_BOOT)])
+@pytest.mark.parametrize("mode", ["full", "readonly"])
 def test_storage_fault_save_command_fails(faulty, mode):
     v, g = faulty(mode)
     g.drain()
@@ -382,28 +372,14 @@ def test_storage_fault_save_command_fails(faulty, mode):
     _still_working(v, g)
 
 
-@pytest.mark.parametrize("mode", [pytest.param("full", marks=FULL_UPLOAD),
-                                  pytest.param("readonly", marks=READONLY_BOOT)])
+@pytest.mark.parametrize("mode", ["full", "readonly"])
 def test_storage_fault_mission_upload_refused(faulty, mode):
     v, g = faulty(mode)
     assert g.upload(items_for(55, 3)) == "refused"
     _still_working(v, g)  # the old plan, still served
 
 
-@pytest.mark.parametrize("mode", [pytest.param("full", marks=OLD_VALUE),
-                                  pytest.param("readonly", marks=READONLY_BOOT)])
-def test_storage_fault_param_set_answered_with_old_value(faulty, mode):
-    v, g = faulty(mode)
-    g.drain()
-    g.m.mav.param_set_send(1, 1, b"SIM_ACCEL", 5.0, 9)
-    answer = g.recv(("PARAM_VALUE",), lambda m: m.param_id == "SIM_ACCEL", 2.0)
-    texts = _texts(g, 1.0)
-    assert answer is not None
-    assert any("SIM_ACCEL" in t or "not saved" in t for t in texts), texts
-    assert answer.param_value == 4.0, answer
-
-
-@pytest.mark.parametrize("mode", ["full", pytest.param("readonly", marks=READONLY_BOOT)])
+@pytest.mark.parametrize("mode", ["full", "readonly"])
 def test_storage_fault_param_set_reported_and_kept_in_memory(faulty, mode):
     v, g = faulty(mode)
     g.drain()

@@ -112,8 +112,6 @@ def test_request_all_streams_heap_locked(vehicle):
         m.close()
 
 
-@pytest.mark.xfail(strict=True, reason="a parameter save heap-locked on the unix port: Storage.path() and "
-                   "open() allocate, the MemoryError is not caught by the save and stops the vehicle")
 def test_param_save_heap_locked(vehicle):
     port = soak_rig.free_udp_port()
     from pymavlink import mavutil

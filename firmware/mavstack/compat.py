@@ -32,6 +32,25 @@ else:  # CPython
     from .compat_cpython import ticks_ms, ticks_us, ticks_diff, ticks_add, sleep_ms
 
 
+# A rare event (a file save, a new UDP peer) may take from the heap even where the board
+# locks it after start-up (HEAP_LOCK guards the per-frame and per-tick paths): it opens
+# the lock for the event and closes it again. heap_unlock() says how deep the lock was.
+def heap_open():
+    """Unlock the heap whatever its lock depth -> that depth, for heap_close()."""
+    if micropython is None or not hasattr(micropython, "heap_lock"):
+        return 0
+    micropython.heap_lock()
+    depth = micropython.heap_unlock()
+    for _ in range(depth):
+        micropython.heap_unlock()
+    return depth
+
+
+def heap_close(depth):
+    for _ in range(depth):
+        micropython.heap_lock()
+
+
 def getenv(name):
     try:
         import os

@@ -8,6 +8,7 @@ without a filesystem; files ignore it.
 """
 import os
 
+from .compat import heap_open, heap_close
 from .kernels import crc16
 
 
@@ -31,6 +32,9 @@ def makedirs(path):
 
 
 class Storage:
+    # Opening, renaming and removing files make strings and file objects: rare events,
+    # so each opens a heap that a board locked after start-up (compat.heap_open) and
+    # locks it again, whatever the outcome. Reads and writes of an open file make nothing.
     def __init__(self, root):
         self.root = root.rstrip("/") or "/"
         makedirs(self.root)
@@ -39,35 +43,59 @@ class Storage:
         return self.root + "/" + name
 
     def exists(self, name):
-        return _exists(self.path(name))
+        depth = heap_open()
+        try:
+            return _exists(self.path(name))
+        finally:
+            heap_close(depth)
 
     def open_new(self, name, size=None):
         """Open NAME.new for writing; commit(name) makes it NAME."""
-        return open(self.path(name) + ".new", "wb")
+        depth = heap_open()
+        try:
+            return open(self.path(name) + ".new", "wb")
+        finally:
+            heap_close(depth)
 
     def reserve(self, name, size):
         """Nothing to do on a file system (storage_ram.py makes room here)."""
 
     def commit(self, name):
-        new = self.path(name) + ".new"
-        final = self.path(name)
+        depth = heap_open()
         try:
-            os.rename(new, final)  # atomic on POSIX and littlefs
-        except OSError:
-            # FAT cannot rename over a file: the one non-atomic window is here.
-            os.remove(final)
-            os.rename(new, final)
+            new = self.path(name) + ".new"
+            final = self.path(name)
+            try:
+                os.rename(new, final)  # atomic on POSIX and littlefs
+            except OSError:
+                # FAT cannot rename over a file: the one non-atomic window is here.
+                os.remove(final)
+                os.rename(new, final)
+        finally:
+            heap_close(depth)
 
     def discard_new(self, name):
-        if _exists(self.path(name) + ".new"):
-            os.remove(self.path(name) + ".new")
+        depth = heap_open()
+        try:
+            if _exists(self.path(name) + ".new"):
+                os.remove(self.path(name) + ".new")
+        finally:
+            heap_close(depth)
 
     def open(self, name, mode="rb", size=None):
-        return open(self.path(name), mode)
+        depth = heap_open()
+        try:
+            return open(self.path(name), mode)
+        finally:
+            heap_close(depth)
 
     def remove(self, name):
-        if self.exists(name):
-            os.remove(self.path(name))
+        depth = heap_open()
+        try:
+            if _exists(self.path(name)):
+                os.remove(self.path(name))
+        finally:
+            heap_close(depth)
 
 
 def checksum(data, crc=0xFFFF):

@@ -57,20 +57,31 @@ class MissionStore:
         # What load() found in each slot, 5 ints a slot: state, generation (high half,
         # low half), count, CRC. One list made here, so that load() makes nothing.
         self._slots = [0] * 10
+        # False when storage refused a write: staging is refused until a restart.
+        self.writable = True
         size = HEADER_SIZE + capacity * RECORD_SIZE
         self._files = [self._open(storage, name + ".0", size), self._open(storage, name + ".1", size)]
         self._active = 0
         self.load()
 
-    @staticmethod
-    def _open(storage, fname, size):
+    def _open(self, storage, fname, size):
         # size: the most the file will hold. storage_ram hands out its area when the file
         # is first made, at that size; files on a filesystem ignore it.
-        if not storage.exists(fname):
-            f = storage.open(fname, "wb", size=size)
-            f.write(bytearray(HEADER_SIZE))
-            f.close()
-        return storage.open(fname, "r+b", size=size)
+        try:
+            if not storage.exists(fname):
+                f = storage.open(fname, "wb", size=size)
+                f.write(bytearray(HEADER_SIZE))
+                f.close()
+            return storage.open(fname, "r+b", size=size)
+        except OSError:
+            pass
+        # Read-only storage (or no room to make the file): the stored plan is still
+        # flown and served, new plans are refused (begin() -> False).
+        self.writable = False
+        try:
+            return storage.open(fname, "rb", size=size)
+        except OSError:
+            return None  # nothing stored, nothing to read: an empty slot
 
     @property
     def gen(self):
@@ -107,9 +118,7 @@ class MissionStore:
     def _wipe(self):
         zero(self._hdr, 0, HEADER_SIZE)
         for f in self._files:
-            f.seek(0)
-            f.write(self._hdr)
-            f.flush()
+            self._safely(f)
 
     def _check(self, i):
         """Slot i's state, generation, count and CRC into self._slots."""
@@ -127,6 +136,8 @@ class MissionStore:
     def _state(self, f):
         """_EMPTY, _VALID, _DAMAGED or _GARBAGE: one slot file (its header left in _hdr)."""
         hdr = self._hdr
+        if f is None:
+            return _EMPTY
         f.seek(0)
         n = f.readinto(hdr)
         i = 0
@@ -200,13 +211,38 @@ class MissionStore:
 
     # --- staging a new plan ---------------------------------------------------------
 
+    def _safely(self, f):
+        """Write _hdr at the start of f -> done; a storage error (full, read-only,
+        gone) makes the store read-only rather than escape into a message handler."""
+        if f is None:  # no slot file (read-only storage that had none)
+            return self._failed()
+        try:
+            return self._header_to(f)
+        except OSError:
+            return self._failed()
+
+    def _header_to(self, f):
+        f.seek(0)
+        if f.write(self._hdr) != HEADER_SIZE:
+            return False
+        f.flush()
+        return True
+
     def begin(self, keep=0):
-        """Start a new plan in the spare slot, with the first `keep` items of the plan in force."""
-        spare = self._files[1 - self._active]
+        """Start a new plan in the spare slot, with the first `keep` items of the plan in
+        force -> False when storage cannot take it (the plan in force stands)."""
+        if not self.writable:
+            return False
         zero(self._hdr, 0, HEADER_SIZE)
-        spare.seek(0)
-        spare.write(self._hdr)
-        spare.flush()
+        if not self._safely(self._files[1 - self._active]):
+            return False
+        try:
+            return self._keep(keep)
+        except OSError:
+            return self._failed()
+
+    def _keep(self, keep):
+        spare = self._files[1 - self._active]
         src = self._files[self._active]
         keep = keep if keep < self.count else self.count
         o = HEADER_SIZE
@@ -217,18 +253,38 @@ class MissionStore:
             spare.write(self._rec)
             o += RECORD_SIZE
             keep -= 1
+        return True
 
     def put(self, seq, rec):
-        """Write record seq of the staged plan."""
+        """Write record seq of the staged plan -> done."""
+        # A bare except: `except OSError` needs one more word of frame state, past what
+        # MicroPython keeps on the C stack (this runs per item). Whatever failed, the
+        # staged plan cannot be trusted and the store refuses it.
+        try:
+            return self._put(seq, rec)
+        except:  # noqa: E722
+            return self._failed()
+
+    def _failed(self):
+        self.writable = False
+        return False
+
+    def _put(self, seq, rec):
         spare = self._files[1 - self._active]
         spare.seek(HEADER_SIZE + seq * RECORD_SIZE)
         return spare.write(rec) == RECORD_SIZE
 
     def seal(self, count):
         """Read the staged plan back: its CRC and DO_JUMP count (staged_jumps); False if short."""
+        self._staged_count = count
+        try:
+            return self._seal(count)
+        except OSError:
+            return self._failed()
+
+    def _seal(self, count):
         spare = self._files[1 - self._active]
         spare.flush()
-        self._staged_count = count
         return self._scan(spare, count)
 
     def commit(self):
@@ -253,11 +309,8 @@ class MissionStore:
         v = crc16(h, 0, 14, 0xFFFF)
         h[14] = v & 0xFF
         h[15] = v >> 8
-        spare = self._files[1 - self._active]
-        spare.seek(0)
-        if spare.write(h) != HEADER_SIZE:
+        if not self._safely(self._files[1 - self._active]):
             return False
-        spare.flush()
         self._active = 1 - self._active
         self.gen_hi = hi
         self.gen_lo = lo
@@ -267,4 +320,5 @@ class MissionStore:
 
     def close(self):
         for f in self._files:
-            f.close()
+            if f is not None:
+                f.close()

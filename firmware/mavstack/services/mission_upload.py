@@ -85,6 +85,9 @@ class Upload:
     def start(self, link, store, first, keep):
         """Ask for items first .. m.t_end of a plan of m.t_count items (keep: items of the
         plan in force copied first)."""
+        if not store.begin(keep):
+            self.m._storage_failed(link, store)
+            return
         self.m._start(link, _UPLOAD, store)
         self.first = self.base = self.top = self.cursor = self.m.t_seq = first
         self.mark = first + 1
@@ -95,7 +98,6 @@ class Upload:
         self.srtt8 = -1
         self.rto = self.retry_ms
         self.heard = self.m.ep.now
-        store.begin(keep)
         self._fill(self.m.ep.now)
 
     # --- asking -------------------------------------------------------------------
@@ -300,6 +302,6 @@ def _stage(m, p, seq, is_int):
     """Check item seq and write its record into the staging slot -> MAV_MISSION_RESULT."""
     result = mission_items.check(m, p, is_int, seq)
     if result == _ACCEPTED and not m.t_store.put(seq, m._rec):
-        return _ERROR
+        return m._unsaved()
     return result
 

@@ -56,6 +56,7 @@ from ..kernels import copy
 from .mission_items import LOCAL_FRAMES, unfix
 from .mission_store import MissionStore, RECORD_SIZE
 from .mission_upload import Upload
+from .statustext import ERROR as _SEVERITY_ERROR
 
 # Loading this module from a .mpy leaves the loader's garbage between the code it
 # kept: collect it now, so that the class and tables below find room on a small heap.
@@ -342,17 +343,27 @@ class Missions:
 
     def _commit(self, store, count):
         if not store.seal(count):
-            return _ERROR
+            return self._unsaved()
         if store.mission_type == _TYPE_MISSION and store.staged_jumps > self.jump_slots:
             return _NO_SPACE  # more DO_JUMPs than the runner keeps counters for
-        return _ACCEPTED if store.commit() else _ERROR
+        return _ACCEPTED if store.commit() else self._unsaved()
+
+    def _unsaved(self):
+        self.ep.statustext(_SEVERITY_ERROR, b"Mission not saved: storage refused it")
+        return _ERROR
 
     def _clear(self, store):
-        store.begin(0)
+        if not store.begin(0):
+            return self._unsaved()
         result = self._commit(store, 0)
         if result == _ACCEPTED:
             self._plan_changed(store, 0)
         return result
+
+    def _storage_failed(self, link, store):
+        """A new plan cannot be staged (storage full, read-only or failing): MISSION_ACK
+        error to its sender; the plan in force stands."""
+        self._reply(link, self._unsaved(), store.mission_type)
 
     def _plan_changed(self, store, current):
         if store.mission_type == _TYPE_MISSION and self.runner is not None:
