@@ -15,9 +15,11 @@ Each peer has a socket bound to the server's port and connect()ed to it, so that
 reads and writes are the stream calls, which allocate nothing. An unconnected socket
 bound to the same port gets only datagrams from addresses no socket is connected to,
 read with recvfrom (it allocates: an address that is not a peer is not the steady
-state), and a new peer's socket is made then (rare).
+state), and a new peer's socket is made then (rare). Those rare events open a heap the
+board locked after start-up (compat.heap_open), as does the first datagram the poll
+object reports (it makes its event tuple then, once).
 """
-from .compat import MICROPYTHON, ticks_diff, ticks_add
+from .compat import MICROPYTHON, ticks_diff, ticks_add, heap_open, heap_close
 from .transport import UdpTransport, UDP_BYTES_PER_S, _sockaddr
 
 _PEERS = 4  # ground stations served at once
@@ -44,6 +46,7 @@ class UdpServer(UdpTransport):
         self._listen = self._bound(self._addr)
         self._poll = select.poll()
         self._poll.register(self._listen, select.POLLIN)
+        self._primed = False  # the poll object has made its event tuple
 
     @property
     def peer(self):
@@ -106,23 +109,38 @@ class UdpServer(UdpTransport):
     def _waiting(self):
         """Is a datagram waiting on the listening socket? (Asked on every poll: apart
         from _newcomer, whose try and locals take a frame state from the heap.)"""
+        if not self._primed:
+            return self._first_wait()
         for _obj, _ev in (self._poll.ipoll(0) if MICROPYTHON else self._poll.poll(0)):
             return True
         return False
+
+    def _first_wait(self):
+        depth = heap_open()
+        try:
+            for _obj, _ev in (self._poll.ipoll(0) if MICROPYTHON else self._poll.poll(0)):
+                self._primed = True
+                return True
+            return False
+        finally:
+            heap_close(depth)
 
     def _newcomer(self, buf):
         # An address no peer socket is connected to (or a peer's datagram that came
         # before its socket was). It becomes a peer only if the link finds a valid frame
         # in it (heard).
+        depth = heap_open()
         try:
             data, addr = self._listen.recvfrom(len(buf))
+            self._rx = self._slot_of(addr)
+            self.rx_peer = addr if self._rx < 0 else self._addrs[self._rx]
+            n = len(data)
+            buf[0:n] = data
+            return n
         except OSError:
             return 0
-        self._rx = self._slot_of(addr)
-        self.rx_peer = addr if self._rx < 0 else self._addrs[self._rx]
-        n = len(data)
-        buf[0:n] = data
-        return n
+        finally:
+            heap_close(depth)
 
     def _slot_of(self, addr):
         for i in range(len(self._socks)):
@@ -168,14 +186,21 @@ class UdpServer(UdpTransport):
             if quiet > _PEER_QUIET_MS and (pick < 0 or quiet > ticks_diff(now, self._heard_at[pick])):
                 pick = i
         if pick >= 0:
-            if self._socks[pick] is not None:
-                self._socks[pick].close()
-            s = self._bound(self._addr)
-            s.connect(self.rx_peer)
-            self._socks[pick] = s
-            self._addrs[pick] = self.rx_peer
-            self._rx = pick
+            depth = heap_open()
+            try:
+                self._connect_slot(pick)
+            finally:
+                heap_close(depth)
         return pick
+
+    def _connect_slot(self, pick):
+        if self._socks[pick] is not None:
+            self._socks[pick].close()
+        s = self._bound(self._addr)
+        s.connect(self.rx_peer)
+        self._socks[pick] = s
+        self._addrs[pick] = self.rx_peer
+        self._rx = pick
 
     # --- writing: to every live peer ---------------------------------------------------
     def write(self, buf, n):
