@@ -17,6 +17,13 @@ FENCE_CAPACITY = 100
 RALLY_CAPACITY = 20
 OPERATOR_PASSKEY = None  # a string makes CHANGE_OPERATOR_CONTROL required to take control
 GCS_TIMEOUT_MS = 5000
+# Modes (mavstack/services/status.py): custom modes the simulator flies, each with the
+# MAV_MODE_FLAG bits it sets, numbered as ground stations name them for a multicopter
+# (MAVProxy's `mode AUTO`, `mode LOITER`). Any other custom mode is refused.
+CUSTOM_MODES = (
+    (3, "AUTO", 16 | 4),  # STABILIZE | AUTO: flies the mission while armed
+    (5, "LOITER", 16),  # STABILIZE: holds where it is
+)
 RAM_BUDGET = 256 * 1024  # heap the vehicle may hold after start-up (main.py reports it)
 
 
