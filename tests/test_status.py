@@ -347,4 +347,6 @@ def test_state_override_and_mode_hook():
     assert status.system_status == 4  # ACTIVE: armed
     status.mode_check = lambda base, custom: "no AUTO here" if base & 4 else None
     assert status.set_mode(4) == 2 and status.reason == "no AUTO here" and not status.auto
-    assert status.set_mode(16, 7) == 0 and status.base_mode == 128 | 16 | 1 and status.custom_mode == 7
+    assert status.set_mode(16, 7) == 2 and status.custom_mode == 0  # not in the table
+    status.custom_modes = ((7, "SEVEN", 16),)
+    assert status.set_mode(4 | 1, 7) == 0 and status.base_mode == 128 | 16 | 1 and status.custom_mode == 7

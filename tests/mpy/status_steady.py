@@ -4,7 +4,8 @@
 SERVICES is a comma list (status,commands[,params,...]). A ground station's heartbeat
 every simulated second, and a burst of commands each 50 ms: arm/disarm, an unknown
 command, REQUEST_MESSAGE (SYS_STATUS, AUTOPILOT_VERSION), COMMAND_INT, SET_MODE, PING,
-a corrupted frame, a STATUSTEXT. After a warm-up the rounds run twice: unlocked, counted
+a corrupted frame, a STATUSTEXT. SYS_STATUS carries the pre-arm and geofence bits the
+status service fills from the arming check (a hook here) and the fence. After a warm-up the rounds run twice: unlocked, counted
 with micropython.mem_total(), then under heap_lock() (any allocation raises MemoryError).
 Prints `OK rounds=N acks=N ... requested=0` (the figures of the locked run; requested:
 bytes the unlocked one asked of the heap), or FAIL and the same when that is not 0.
@@ -25,6 +26,9 @@ from harness import Bench
 
 def build(services, storage):
     b = Bench(services=services, storage=storage)
+    st = b.ep.services["status"]
+    st.custom_modes = ((3, "AUTO", 4 | 16),)
+    st.arm_check = _no_objection  # asked once a second for SYS_STATUS's pre-arm health
     g = b.gcs()
     frames = (
         g.heartbeat(),
@@ -33,8 +37,8 @@ def build(services, storage):
         g.command(31000),  # unknown
         g.command(512, 1.0),  # REQUEST_MESSAGE SYS_STATUS
         g.command(512, 148.0),  # REQUEST_MESSAGE AUTOPILOT_VERSION
-        g.command_int(176, 0, 1.0 + 16, 3.0),  # DO_SET_MODE as COMMAND_INT
-        g.frame(11, 0, 1, 4 | 16),  # SET_MODE
+        g.command_int(176, 0, 1.0 + 16, 3.0),  # DO_SET_MODE as COMMAND_INT, custom mode 3
+        g.frame(11, 99, 1, 1),  # SET_MODE to custom mode 99, which is refused (a STATUSTEXT)
         g.frame(4, 1234567, 9, 0, 0),  # PING request
         g.command(400, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1, 1, 1),  # arm, confirmation 1
         g.command(400, 0.0, 21196.0),  # forced disarm
@@ -42,6 +46,10 @@ def build(services, storage):
     bad = bytearray(frames[3])
     bad[-1] ^= 0xFF  # CRC error
     return b, frames[0], frames[1:], bad
+
+
+def _no_objection(arm):
+    return None
 
 
 class Steady:

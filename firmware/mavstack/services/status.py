@@ -11,6 +11,8 @@ It also holds the vehicle state other services and the application share:
     status.set_state(MAV_STATE_CRITICAL) / set_state(0)  (back to the life cycle)
     status.set_home(lat_e7, lon_e7, alt_mm), status.home_set, status.home
     status.set_sensors(present, enabled, health), status.set_battery(mv, ca, percent)
+    status.fence_enabled, status.fence_breached   set by an application that checks a fence
+    status.custom_modes   ((custom_mode, "NAME", MAV_MODE_FLAG bits), ...): the board's CUSTOM_MODES
     status.set_clock(unix_usec), status.statustext(severity, text), status.gcs_present(link)
     status.reboot(1) (2: shutdown, if the board has shutdown()): Reboot is raised out of
     a poll reboot_delay_ms later, once the ACK and a STATUSTEXT are on the wire
@@ -20,6 +22,19 @@ Hooks the application may set (None: no opinion):
     position() -> (lat_e7, lon_e7, alt_mm) or None              for DO_SET_HOME "current"
     on_gcs_lost(link), on_gcs_regained(link)                   fail-safe triggers
 A command forced with 21196 (COMPONENT_ARM_DISARM param2) skips arm_check.
+
+Modes: MAV_MODE_FLAG bits of mode_flags_supported (the board's MODE_FLAGS), and the
+custom modes of the board's CUSTOM_MODES table; a custom mode sets its own flags (the
+sender's other flags give way to them), custom_mode 0 is "none". Anything else is
+refused (DENIED, with a STATUSTEXT) and the mode stays as it was.
+
+SYS_STATUS: the application's sensor bits (set_sensors), and two the status service
+fills itself. MAV_SYS_STATUS_PREARM_CHECK is always present and enabled, healthy when
+arming would be accepted: armed already, or arm_check(True) has no objection (asked
+once a second while disarmed: keep it free of side effects). MAV_SYS_STATUS_GEOFENCE
+is present and enabled while the application checks a fence (fence_enabled) and a fence
+plan is stored; healthy unless fence_breached (ground stations read a clear health bit
+as a breach, fence or none).
 
 Load (SYS_STATUS.load) is the share of wall time not spent in status.idle(ms), which
 main.py's loop sleeps through; an application running its own loop calls idle(ms),
@@ -59,6 +74,13 @@ MODE_CUSTOM = const(1)
 
 _ACCEPTED = const(0)
 _DENIED = const(2)
+
+# MAV_SYS_STATUS bits the status service fills: both below 2^30 (small ints on a 32-bit
+# board), merged into the application's words as bytes, so its masks may use bit 31.
+_PREARM_CHECK = const(0x10000000)  # byte 3, 0x10
+_GEOFENCE = const(0x100000)  # byte 2, 0x10
+_OWN_BIT = const(0x10)  # the bit each of them is in its byte
+_FENCE_PLAN = const(1)  # missions.stores[1]: the fence
 
 _MSG_HEARTBEAT = const(0)
 _MSG_SYS_STATUS = const(1)
@@ -103,6 +125,7 @@ class Status:
         self.custom_mode = 0
         self.system_status = MAV_STATE_BOOT
         self.mode_flags_supported = MODE_MANUAL_INPUT | MODE_STABILIZE | MODE_GUIDED | MODE_AUTO | MODE_CUSTOM
+        self.custom_modes = ()  # ((custom_mode, name, MAV_MODE_FLAG bits), ...)
         self._override = 0  # a MAV_STATE the application set, 0: follow the life cycle
         self._initialised = False
         self.reason = None
@@ -115,6 +138,10 @@ class Status:
         self.sensors_present = 0
         self.sensors_enabled = 0
         self.sensors_health = 0
+        self.fence_enabled = False
+        self.fence_breached = False
+        self._own_present = _PREARM_CHECK  # the bits above, as of the last _own_bits()
+        self._own_health = _PREARM_CHECK | _GEOFENCE
         self.voltage_mv = 0xFFFF  # UINT16_MAX: not measured
         self.current_ca = -1
         self.battery_remaining = -1
@@ -230,9 +257,11 @@ class Status:
     def set_mode(self, base_mode, custom_mode=0):
         """Change the mode flags (SAFETY_ARMED is ignored: arming is its own command)."""
         self.reason = None
-        flags = base_mode & 0x7F
-        if custom_mode:
-            flags |= MODE_CUSTOM
+        flags = _flags_of(self.custom_modes, base_mode & 0x7F, custom_mode)
+        if flags < 0:
+            self.reason = "no such custom mode"  # a constant: a board may lock its heap
+            self.statustext(WARNING, b"Mode: no such custom mode")
+            return _DENIED
         if flags & ~self.mode_flags_supported:
             self.reason = "mode flags 0x%02x not supported" % (flags & ~self.mode_flags_supported)
             self.statustext(WARNING, "Mode: " + self.reason)
@@ -351,6 +380,7 @@ class Status:
         if ticks_diff(now, self._next_period) >= 0:  # fell behind: keep the rate, not the backlog
             self._next_period = ticks_add(now, _PERIOD_MS)
         self._measure()
+        self._own_bits()
         sys_status = "streams" not in self.ep.services
         for link in self.ep.links:
             link.rank = RANK_VITAL  # the 1 Hz HEARTBEAT goes whatever else the link carries
@@ -370,6 +400,31 @@ class Status:
         self._idle_us = 0
         self._idle_seen = False
         self._link_figures()
+
+    def _own_bits(self):
+        # Once a second: what the arming check and the fence say, for SYS_STATUS.
+        present = _PREARM_CHECK
+        health = _PREARM_CHECK if self.armed or self._prearm_ok() else 0
+        if self.fence_enabled and self._fence_plan():
+            present |= _GEOFENCE
+        if not self.fence_breached:
+            health |= _GEOFENCE
+        self._own_present = present
+        self._own_health = health
+
+    def _prearm_ok(self):
+        if self.arm_check is None:
+            return True
+        try:
+            answer = self.arm_check(True)
+        except Exception:  # a broken check is no green light
+            return False
+        return answer is None or (isinstance(answer, tuple) and answer[0] == _ACCEPTED)
+
+    def _fence_plan(self):
+        missions = self.ep.services.get("missions")
+        store = missions.stores[_FENCE_PLAN] if missions is not None else None
+        return store is not None and store.count > 0
 
     def _link_figures(self):
         frames = lost = errors = 0
@@ -470,6 +525,9 @@ class Status:
         off = link.tx.clear(link.tx.crc_len[_MSG_SYS_STATUS] >> 16)
         buf = link.txbuf
         pack_into("<III", buf, off, self.sensors_present, self.sensors_enabled, self.sensors_health)
+        _merge(buf, off, self._own_present)  # enabled: what is present
+        _merge(buf, off + 4, self._own_present)
+        _merge(buf, off + 8, self._own_health)
         pack_into("<HHh", buf, off + 12, self.load, self.voltage_mv, self.current_ca)
         pack_into("<HH", buf, off + 18, self.drop_rate_comm, self.errors_comm)
         pack_into("<H", buf, off + 22, self.texts.dropped & 0xFFFF)  # errors_count1
@@ -501,6 +559,26 @@ class Status:
         pack_into("<iii", buf, off, self.home_lat, self.home_lon, self.home_alt)
         pack_into("<f", buf, off + 24, self._one)
         return link.send(_MSG_HOME_POSITION)
+
+
+def _flags_of(table, flags, custom_mode):
+    # -> the MAV_MODE_FLAG bits a mode request comes to: a custom mode of the table sets
+    # its own (and CUSTOM_MODE_ENABLED); -1 for a custom mode the table does not have.
+    # By index: a for loop's iterator would put this frame on the heap.
+    if not custom_mode:
+        return flags
+    i = 0
+    while i < len(table):
+        if table[i][0] == custom_mode:
+            return table[i][2] & 0x7E | MODE_CUSTOM
+        i += 1
+    return -1
+
+
+def _merge(buf, o, bits):
+    # The status service's bits (only _OWN_BIT of bytes 2 and 3) into a uint32 at o.
+    buf[o + 2] = (buf[o + 2] & ~_OWN_BIT) | (bits >> 16 & _OWN_BIT)
+    buf[o + 3] = (buf[o + 3] & ~_OWN_BIT) | (bits >> 24 & _OWN_BIT)
 
 
 def _version_word(v, kind):
@@ -535,4 +613,6 @@ def create(ep):
         uid=_uid(board, ep.sysid),
         reboot_delay_ms=ep.setting("REBOOT_DELAY_MS", 100),
     )
+    status.mode_flags_supported = ep.setting("MODE_FLAGS", status.mode_flags_supported)
+    status.custom_modes = ep.setting("CUSTOM_MODES", ())
     return ep.add(status)
