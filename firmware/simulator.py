@@ -35,6 +35,12 @@ class Simulator:
         self.throttle = 0.0  # 0..1
         self.battery_v = 12.6
         self.battery_remaining = 100.0  # percent
+        # The payload, as mission commands set it (MissionPilot).
+        self.roi = None  # (lat, lon, alt MSL) the nose points at
+        self.gimbal = (0.0, 0.0)  # pitch, yaw (deg)
+        self.photos = 0
+        self.trigger_dist = 0.0  # m between photos, 0: off
+        self.video = False
         self._last = None
         self._status_hooks()
 
@@ -266,6 +272,17 @@ class MissionPilot:
     `--set sim_speed=M/S` (and sim_climb) override them, beyond their ranges, for
     tests that fly a whole mission in a second. A NAV_WAYPOINT is reached within its
     param2 (WP_ACCEPT_RAD when 0) and held there for param1 seconds.
+
+    Today's planners' commands: NAV_DELAY holds for param1 seconds (or until the UTC
+    time of day in param2-4); DO_CHANGE_SPEED changes the speed (param1: 0/1
+    horizontal, 2 climb, 3 descent; param2 -1 no change, -2 back to the parameter) until
+    the mission starts over; NAV_LOITER_TO_ALT flies to its position, then to its
+    altitude; a takeoff, land or loiter without a position (x, y unset or 0) happens
+    where the vehicle is. A region of interest (DO_SET_ROI_LOCATION, DO_SET_ROI with
+    mode 3, NAV_ROI) turns the vehicle's nose to it until DO_SET_ROI_NONE; the camera
+    and gimbal commands are kept on the simulator (sim.roi, sim.gimbal, sim.photos,
+    sim.trigger_dist, sim.video) as a payload would act on them; DO_LAND_START only
+    marks where a landing sequence begins.
     """
 
     def __init__(self, sim):
@@ -280,6 +297,8 @@ class MissionPilot:
         self._started = None
         self._arrived = 0.0  # seconds spent at the item's position
         self._yaw_target = None
+        self._changed = {}  # DO_CHANGE_SPEED's speeds ("speed", "climb", "sink") until a restart
+        self._wait = None  # NAV_DELAY: seconds to wait
 
     def step(self, dt):
         runner = self.missions.runner if self.missions is not None else None
@@ -300,6 +319,10 @@ class MissionPilot:
             self._started = runner.started_ms
             self._arrived = 0.0
             self._yaw_target = None
+            self._wait = None
+            if item.seq == 0:
+                self._changed.clear()  # the mission starts over: speeds from the parameters
+                self.sim.roi = None
             self._settings()
         if self._do(item, dt):
             runner.reached()
@@ -320,6 +343,8 @@ class MissionPilot:
         self.sink = setting("sim_climb", "WP_SPEED_DN", 1.5)
         self.radius = setting("sim_accept_radius", "WP_ACCEPT_RAD", 2.0)
         self.turn_rate = setting("sim_yaw_rate", "SIM_YAW_RATE", 90.0)
+        for name, value in getattr(self, "_changed", {}).items():
+            setattr(self, name, value)
 
     # --- one item -----------------------------------------------------------------
     def _do(self, item, dt):
@@ -374,8 +399,21 @@ class MissionPilot:
             self._hold()
             return self._turn(self._yaw_target, item.param2 or self.turn_rate, dt)
         if cmd == 178:  # DO_CHANGE_SPEED
-            if item.param2 > 0:
-                self.speed = item.param2
+            self._change_speed(item)
+            return True
+        if cmd == 93:  # NAV_DELAY
+            return self._delay(item, dt)
+        if cmd == 31:  # NAV_LOITER_TO_ALT: there at the altitude it has, then to the item's
+            lat, lon, alt = self._position(item)
+            if self._arrived == 0.0 and not self._go(lat, lon, sim.alt, dt, self.radius):
+                return False
+            self._arrived += dt
+            return self._go(lat, lon, alt, dt, 0.5)
+        if cmd in (80, 195, 197, 201):
+            self._roi(item)
+            return True
+        if cmd in (205, 1000, 206, 214, 2000, 2001, 2500, 2501):
+            self._payload(item)
             return True
         if cmd == 179 and self.status is not None:  # DO_SET_HOME
             if item.param1 == 1:
@@ -394,8 +432,9 @@ class MissionPilot:
     def _position(self, item):
         """(lat, lon, alt MSL) of an item; 0/0 means here, relative frames add home."""
         sim = self.sim
-        if item.x == 0 and item.y == 0:
-            lat, lon = sim.lat, sim.lon
+        if item.x_unset or item.y_unset or (item.x == 0 and item.y == 0):
+            lat = sim.lat if item.x_unset or not item.y_unset else item.lat
+            lon = sim.lon if item.y_unset or not item.x_unset else item.lon
         else:
             lat, lon = item.lat, item.lon
         alt = item.z
@@ -404,6 +443,57 @@ class MissionPilot:
         elif item.frame in (3, 6, 10, 11):  # relative to home (terrain: no terrain data here)
             alt += self._home()[2]
         return lat, lon, alt
+
+    def _change_speed(self, item):
+        # param1: 0 airspeed, 1 ground speed (both the horizontal speed here), 2 climb,
+        # 3 descent; param2: the speed, -1 no change, -2 back to the parameter's.
+        name = ("speed", "speed", "climb", "sink")[int(item.param1)] if 0 <= item.param1 < 4 else "speed"
+        if item.param2 == -2:
+            self._changed.pop(name, None)
+            self._settings()
+        elif item.param2 > 0:
+            self._changed[name] = item.param2
+            setattr(self, name, item.param2)
+
+    def _delay(self, item, dt):
+        """NAV_DELAY: hold for param1 s, or (param1 -1) until hour:minute:second UTC in
+        param2-4 (-1: any hour, any minute)."""
+        self._hold()
+        if self._wait is None:
+            self._wait = item.param1 if item.param1 >= 0 else _until(item.param2, item.param3, item.param4)
+        self._arrived += dt
+        return self._arrived >= self._wait
+
+    def _roi(self, item):
+        sim = self.sim
+        cmd = item.command
+        if cmd == 197 or (cmd == 201 and item.param1 == 0) or (cmd == 80 and item.param1 == 0):
+            sim.roi = None  # DO_SET_ROI_NONE, ROI mode 0
+        elif cmd == 195 or ((cmd == 201 or cmd == 80) and item.param1 == 3):
+            lat, lon, alt = self._position(item)
+            sim.roi = (lat, lon, alt)
+
+    def _payload(self, item):
+        """Camera and gimbal commands, as a payload would take them."""
+        sim = self.sim
+        cmd = item.command
+        if cmd == 205:  # DO_MOUNT_CONTROL: pitch, roll, yaw (deg)
+            sim.gimbal = (item.param1, item.param3)
+        elif cmd == 1000:  # DO_GIMBAL_MANAGER_PITCHYAW: NaN keeps an angle
+            pitch, yaw = sim.gimbal
+            sim.gimbal = (pitch if math.isnan(item.param1) else item.param1,
+                          yaw if math.isnan(item.param2) else item.param2)
+        elif cmd == 206:  # DO_SET_CAM_TRIGG_DIST: a photo every param1 m (0: stop)
+            sim.trigger_dist = max(item.param1, 0.0)
+            sim.photos = sim.photos + (1 if item.param3 == 1 and item.param1 > 0 else 0)
+        elif cmd == 214:  # DO_SET_CAM_TRIGG_INTERVAL
+            sim.trigger_dist = 0.0
+        elif cmd == 2000:  # IMAGE_START_CAPTURE: one photo (the interval's are not simulated)
+            sim.photos = sim.photos + 1
+        elif cmd == 2001:
+            sim.trigger_dist = 0.0
+        else:  # VIDEO_START_CAPTURE / VIDEO_STOP_CAPTURE
+            sim.video = cmd == 2500
 
     # --- motion -------------------------------------------------------------------
     def _go(self, lat, lon, alt, dt, radius, climb=None):
@@ -423,7 +513,9 @@ class MissionPilot:
         me = de / dist * step if dist > 0 else 0.0
         md = -vstep if du > 0 else vstep
         sim.vn, sim.ve, sim.vd = mn / dt, me / dt, md / dt
-        if dist > 0.5:
+        if sim.roi is not None:
+            sim.heading = _bearing(sim, sim.roi)  # the nose on the region of interest
+        elif dist > 0.5:
             sim.heading = math.atan2(de, dn)
         # Lean into the motion: a quadrotor tilts to accelerate and hold speed.
         speed_share = step / (self.speed * dt) if self.speed > 0 else 0.0
@@ -452,3 +544,27 @@ class MissionPilot:
         airborne = status is not None and status.armed
         sim.throttle = 0.5 if airborne else 0.0
 
+
+
+def _bearing(sim, point):
+    """Radians from north from the simulated vehicle to (lat, lon, ...)."""
+    dn = math.radians(point[0] - sim.lat) * EARTH_RADIUS
+    de = math.radians(point[1] - sim.lon) * EARTH_RADIUS * math.cos(math.radians(sim.lat))
+    return math.atan2(de, dn) if dn or de else sim.heading
+
+
+def _until(hour, minute, second):
+    """Seconds from now to the next hour:minute:second UTC (-1 hour: any hour, -1
+    minute: any minute; NaN counts as -1)."""
+    import time
+
+    now = time.time()
+    day = int(now) % 86400
+    best = None
+    for h in range(24) if not hour >= 0 else (int(hour) % 24,):
+        for mi in range(60) if not minute >= 0 else (int(minute) % 60,):
+            t = h * 3600 + mi * 60 + (int(second) % 60 if second >= 0 else 0)
+            wait = (t - day) % 86400
+            if best is None or wait < best:
+                best = wait
+    return float(best)

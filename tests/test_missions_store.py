@@ -247,6 +247,9 @@ def test_float_to_fixed_examples():
 @given(st.integers(-0x80000000, 0x7FFFFFFF), st.sampled_from([7, 4]))
 def test_fixed_to_float_is_correctly_rounded(v, scale_e):
     bits = to_float(v, scale_e)
+    if v == 0x7FFFFFFF:  # INT32_MAX: x or y unset, NaN in the seed's MISSION_ITEM
+        assert bits == 0x7FC00000
+        return
     want = Fraction(v, 10 ** scale_e)
     got = _exact(bits)
     # No float32 lies closer to v / 10**scale_e (ties: the even one).

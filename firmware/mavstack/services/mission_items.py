@@ -27,6 +27,7 @@ _INVALID_PARAM1 = const(6)
 _INVALID_PARAM5_X = const(10)
 _INVALID_PARAM6_Y = const(11)
 _INVALID_PARAM7 = const(12)
+_SEVERITY_ERROR = const(3)  # MAV_SEVERITY
 
 _TYPE_MISSION = const(0)
 _CMD_DO_JUMP = const(177)
@@ -45,21 +46,29 @@ _LON_MIN_LO = const(11776)
 # What an item's command needs, per MAV_MISSION_TYPE: 3 bytes a command, its id (little
 # endian) and what it needs: bits 0-3 param1-4 must be numbers, _P7 z must be a
 # number, _POS x/y are a position (range-checked in global frames, refused in
-# MAV_FRAME_MISSION). Bytes, not tuples: a small board keeps them in one object.
+# MAV_FRAME_MISSION), _HERE x/y may be unset (INT32_MAX in MISSION_ITEM_INT, NaN in
+# MISSION_ITEM): the position the vehicle is at when it gets there. Bytes, not tuples:
+# a small board keeps them in one object. Beyond the seed's commands, those today's
+# planners put in their missions (speed, delays, regions of interest, landing
+# sequences, camera and gimbal): the application sees each one as the runner makes it
+# current (runner.on_item); what it has nothing to do for it steps over.
 _P1 = const(1)
 _P2 = const(2)
+_HERE = const(16)
 _P7 = const(64)
 _POS = const(128)
-_MISSION_RULES = (  # the seed's NAV, CONDITION and DO commands
+_MISSION_RULES = (
     b"\x10\x00\xc0"  # 16 NAV_WAYPOINT: _POS | _P7
-    b"\x11\x00\xc0"  # 17 NAV_LOITER_UNLIM: _POS | _P7
-    b"\x12\x00\xc1"  # 18 NAV_LOITER_TURNS: _POS | _P7 | _P1
-    b"\x13\x00\xc1"  # 19 NAV_LOITER_TIME: _POS | _P7 | _P1
+    b"\x11\x00\xd0"  # 17 NAV_LOITER_UNLIM: _POS | _P7 | _HERE
+    b"\x12\x00\xd1"  # 18 NAV_LOITER_TURNS: _POS | _P7 | _HERE | _P1
+    b"\x13\x00\xd1"  # 19 NAV_LOITER_TIME: _POS | _P7 | _HERE | _P1
     b"\x14\x00\x00"  # 20 NAV_RETURN_TO_LAUNCH
-    b"\x15\x00\x80"  # 21 NAV_LAND: _POS (z NaN: land at ground level)
-    b"\x16\x00\xc0"  # 22 NAV_TAKEOFF: _POS | _P7
+    b"\x15\x00\x90"  # 21 NAV_LAND: _POS | _HERE (z NaN: land at ground level)
+    b"\x16\x00\xd0"  # 22 NAV_TAKEOFF: _POS | _P7 | _HERE
+    b"\x1f\x00\xd0"  # 31 NAV_LOITER_TO_ALT: _POS | _P7 | _HERE
     b"\x50\x00\x00"  # 80 NAV_ROI
     b"\x51\x00\x00"  # 81 NAV_PATHPLANNING
+    b"\x5d\x00\x01"  # 93 NAV_DELAY: _P1 (seconds; -1: until the time of day in param2-4)
     b"\x70\x00\x01"  # 112 CONDITION_DELAY: _P1
     b"\x71\x00\x41"  # 113 CONDITION_CHANGE_ALT: _P1 | _P7
     b"\x72\x00\x01"  # 114 CONDITION_DISTANCE: _P1
@@ -73,7 +82,23 @@ _MISSION_RULES = (  # the seed's NAV, CONDITION and DO commands
     b"\xb6\x00\x03"  # 182 DO_REPEAT_RELAY: _P1 | _P2
     b"\xb7\x00\x03"  # 183 DO_SET_SERVO: _P1 | _P2
     b"\xb8\x00\x03"  # 184 DO_REPEAT_SERVO: _P1 | _P2
+    b"\xbd\x00\x00"  # 189 DO_LAND_START (its x/y, if any, only tell sequences apart)
+    b"\xc3\x00\x80"  # 195 DO_SET_ROI_LOCATION: _POS
+    b"\xc4\x00\x00"  # 196 DO_SET_ROI_WPNEXT_OFFSET
+    b"\xc5\x00\x00"  # 197 DO_SET_ROI_NONE
     b"\xc8\x00\x00"  # 200 DO_CONTROL_VIDEO
+    b"\xc9\x00\x01"  # 201 DO_SET_ROI: _P1 (the ROI mode)
+    b"\xca\x00\x00"  # 202 DO_DIGICAM_CONFIGURE
+    b"\xcb\x00\x00"  # 203 DO_DIGICAM_CONTROL
+    b"\xcc\x00\x01"  # 204 DO_MOUNT_CONFIGURE: _P1 (the mount mode)
+    b"\xcd\x00\x00"  # 205 DO_MOUNT_CONTROL
+    b"\xce\x00\x01"  # 206 DO_SET_CAM_TRIGG_DIST: _P1 (metres, 0: stop)
+    b"\xd6\x00\x01"  # 214 DO_SET_CAM_TRIGG_INTERVAL: _P1 (ms)
+    b"\xe8\x03\x00"  # 1000 DO_GIMBAL_MANAGER_PITCHYAW (NaN: no change)
+    b"\xd0\x07\x00"  # 2000 IMAGE_START_CAPTURE
+    b"\xd1\x07\x00"  # 2001 IMAGE_STOP_CAPTURE
+    b"\xc4\x09\x00"  # 2500 VIDEO_START_CAPTURE
+    b"\xc5\x09\x00"  # 2501 VIDEO_STOP_CAPTURE
 )
 _FENCE_RULES = (
     b"\x88\x13\x80"  # 5000 NAV_FENCE_RETURN_POINT: _POS
@@ -89,7 +114,15 @@ LOCAL_FRAMES = b"\x01\x04\x07\x08\x09\x0c\x14\x15"  # x, y in metres (* 1e4 in M
 
 def check(m, p, is_int, seq):
     """Validate item seq (payload p of MISSION_ITEM_INT, or MISSION_ITEM if not is_int)
-    and build its record in m._rec -> MAV_MISSION_RESULT."""
+    and build its record in m._rec -> MAV_MISSION_RESULT. A refusal is also told in a
+    STATUSTEXT naming the item, its command and what is wrong with it."""
+    result = _check(m, p, is_int, seq)
+    if result != _ACCEPTED:
+        _refused(m, seq, u16(p, 30), result)
+    return result
+
+
+def _check(m, p, is_int, seq):
     _record(m._rec, p)
     frame = p[34]
     if frame not in m.frames:
@@ -125,19 +158,104 @@ def _need(m, command):
 
 def _xy(rec, local, need, is_int):
     """x, y of the record: the seed's float degrees made integers, then range-checked."""
-    pos = need & _POS
-    if not is_int:
-        # NaN or beyond int32: refused where a position is needed, else stored as 0.
-        if not fix(rec, 16, local) and pos:
-            return _INVALID_PARAM5_X
-        if not fix(rec, 20, local) and pos:
-            return _INVALID_PARAM6_Y
-    if pos and not local:
-        if i32_cmp(rec, 16, _LAT_MAX_HI, _LAT_MAX_LO) > 0 or i32_cmp(rec, 16, _LAT_MIN_HI, _LAT_MIN_LO) < 0:
-            return _INVALID_PARAM5_X
-        if i32_cmp(rec, 20, _LON_MAX_HI, _LON_MAX_LO) > 0 or i32_cmp(rec, 20, _LON_MIN_HI, _LON_MIN_LO) < 0:
-            return _INVALID_PARAM6_Y
+    if not _coord(rec, 16, local, need, is_int):
+        return _INVALID_PARAM5_X
+    if not _coord(rec, 20, local, need, is_int):
+        return _INVALID_PARAM6_Y
     return _ACCEPTED
+
+
+def _coord(rec, o, local, need, is_int):
+    """x (o 16) or y (o 20) of the record -> False if refused. Unset where the command
+    takes that (INT32_MAX, or NaN in the seed's form) is stored as INT32_MAX; the seed's
+    NaN or beyond int32 is refused where a position is needed, else stored as 0."""
+    if need & _HERE and (unset(rec, o) if is_int else f32_is_nan(rec, o)):
+        rec[o] = rec[o + 1] = rec[o + 2] = 0xFF
+        rec[o + 3] = 0x7F
+        return True
+    if not is_int and not fix(rec, o, local) and need & _POS:
+        return False
+    return not need & _POS or local or _within(rec, o)
+
+
+def _within(rec, o):
+    # Latitude (o 16) within +-90 degrees, longitude within +-180, by 16-bit halves.
+    if o == 16:
+        return (i32_cmp(rec, 16, _LAT_MAX_HI, _LAT_MAX_LO) <= 0
+                and i32_cmp(rec, 16, _LAT_MIN_HI, _LAT_MIN_LO) >= 0)
+    return (i32_cmp(rec, 20, _LON_MAX_HI, _LON_MAX_LO) <= 0
+            and i32_cmp(rec, 20, _LON_MIN_HI, _LON_MIN_LO) >= 0)
+
+
+def unset(buf, o):
+    """The int32 at buf[o] is INT32_MAX: x or y not given ("where the vehicle is")."""
+    return buf[o] == 0xFF and buf[o + 1] == 0xFF and buf[o + 2] == 0xFF and buf[o + 3] == 0x7F
+
+
+# --- the STATUSTEXT of a refused item ------------------------------------------------
+# "Mission item 12: cmd 31000 unsupported", written into a buffer made at import: a
+# refusal is rare, but the board may run with its heap locked.
+_TEXT = bytearray(50)
+_PLAN = (b"Mission item ", b"Fence item ", b"Rally item ")
+_WHY = (b" frame ", b" unsupported", b" invalid", b" param", b" x/lat", b" y/lon", b" z/alt")
+
+
+def _refused(m, seq, command, result):
+    # Statement by statement, few values on the stack (a frame state over about 11 words
+    # would come from the heap).
+    t = _TEXT
+    n = _text(t, 0, _PLAN[m.t_store.mission_type])
+    n = _digits(t, n, seq)
+    n = _text(t, n, b": cmd ")
+    n = _digits(t, n, command)
+    n = _why(t, n, result, m._rec[30])
+    while n < len(t):
+        t[n] = 0
+        n += 1
+    m.ep.statustext(_SEVERITY_ERROR, t)
+
+
+def _why(t, n, result, frame):
+    """What is wrong, after the command: " frame 1 unsupported", " unsupported",
+    " param1 invalid", " x/lat invalid" ... -> the offset after it."""
+    if result == _UNSUPPORTED_FRAME:
+        n = _text(t, n, _WHY[0])
+        n = _digits(t, n, frame)
+        return _text(t, n, _WHY[1])
+    if result == _UNSUPPORTED:
+        return _text(t, n, _WHY[1])
+    if _INVALID_PARAM1 <= result < _INVALID_PARAM5_X:
+        n = _text(t, n, _WHY[3])
+        n = _digits(t, n, result - _INVALID_PARAM1 + 1)
+    elif _INVALID_PARAM5_X <= result <= _INVALID_PARAM7:
+        n = _text(t, n, _WHY[4 + result - _INVALID_PARAM5_X])
+    else:
+        n = _text(t, n, b" result ")
+        return _digits(t, n, result)
+    return _text(t, n, _WHY[2])
+
+
+def _text(buf, at, text):
+    """buf[at:] = text, cut at the buffer's end -> the offset after it."""
+    i = 0
+    while i < len(text) and at < len(buf):
+        buf[at] = text[i]
+        at += 1
+        i += 1
+    return at
+
+
+def _digits(buf, at, n):
+    """The decimal digits of 0 <= n < 100000 at buf[at:], cut at the buffer's end -> the
+    offset after them."""
+    d = 10000
+    while d > 1 and n < d:
+        d //= 10
+    while d and at < len(buf):
+        buf[at] = 0x30 + n // d % 10
+        at += 1
+        d //= 10
+    return at
 
 
 def _jump(m, p, seq):
@@ -229,7 +347,12 @@ def _put_i32(buf, o, ok):
 
 def unfix(buf, o, local):
     """In place: the int32 at buf[o] -> the float32 nearest to it / 1e7 (/ 1e4 where
-    local), ties to even (its bits)."""
+    local), ties to even (its bits); INT32_MAX (unset) -> NaN, as the seed says it."""
+    if unset(buf, o):
+        buf[o] = buf[o + 1] = 0
+        buf[o + 2] = 0xC0
+        buf[o + 3] = 0x7F
+        return
     neg = buf[o + 3] & 0x80
     if neg:  # the magnitude first, in place, by halves (2**31 too: 0x8000, 0)
         _acc[0] = buf[o + 2] | buf[o + 3] << 8

@@ -7,10 +7,12 @@ itself, with the seed's semantics: a DO_JUMP jumps to param1 as many times as pa
 says (-1: for ever), then falls through to the next item. Jump counters sit in a fixed
 table (one slot per DO_JUMP in the plan, MISSION_JUMP_SLOTS of them) and are reset by a
 new upload, MISSION_START and DO_SET_MISSION_CURRENT with reset.
-Everything else (NAV, CONDITION_DELAY/DISTANCE/YAW/CHANGE_ALT, DO commands) is the
-application's to carry out: runner.item has the fields decoded, runner.elapsed_ms()
-times a CONDITION_DELAY, runner.next_nav() finds the position a CONDITION_DISTANCE
-refers to.
+Everything else (NAV, NAV_DELAY, CONDITION_DELAY/DISTANCE/YAW/CHANGE_ALT, DO commands:
+speed, regions of interest, landing sequences, camera and gimbal) is the application's
+to carry out: each item is handed to it as it becomes current (on_item, and
+runner.item), the application calls reached() once it is done (at once for a DO
+command it has nothing to do for); runner.elapsed_ms() times a NAV_DELAY or
+CONDITION_DELAY, runner.next_nav() finds the position a CONDITION_DISTANCE refers to.
 
     runner = ep.services["missions"].runner   (made by missions.create unless the board
                                       says MISSION_RUNNER = False; MissionRunner(missions))
@@ -50,6 +52,7 @@ _RESULT_ACCEPTED = const(0)
 _RESULT_DENIED = const(2)
 _RESULT_FAILED = const(4)
 _LOCAL_FRAMES = (1, 4, 7, 8, 9, 12, 20, 21)
+_NAN = float("nan")
 
 
 class Item:
@@ -60,9 +63,10 @@ class Item:
     bits at 0..15 and 24, x at 16 and y at 20 as int32, see mission_store.py); x and y
     by 16-bit halves, x = x_hi * 65536 + x_lo (x_hi signed, x_lo 0..65535): compare
     them with fields.i32_cmp(item.rec, 16, hi, lo) or do arithmetic on the halves.
+    x_unset, y_unset: x or y is INT32_MAX, "where the vehicle is" (a takeoff from here).
     Made on first use, then kept for the item: param1..param4, z (floats), x, y (ints as
     stored: degrees * 1e7, metres * 1e4 in local frames), lat, lon (degrees, or metres
-    in local frames).
+    in local frames; NaN where unset).
     """
 
     def __init__(self):
@@ -86,6 +90,9 @@ class Item:
         self.x_lo = u16(rec, 16)
         self.y_hi = i16(rec, 22)
         self.y_lo = u16(rec, 20)
+        # x, y unset (INT32_MAX: "where the vehicle is", as a takeoff may say)
+        self.x_unset = self.x_hi == 0x7FFF and self.x_lo == 0xFFFF
+        self.y_unset = self.y_hi == 0x7FFF and self.y_lo == 0xFFFF
         self._f = None
         return self
 
@@ -94,7 +101,7 @@ class Item:
         if f is None:
             f = struct.unpack_from("<ffffiif", self.rec, 0)
             scale = 1e4 if self.frame in _LOCAL_FRAMES else 1e7
-            f = self._f = f + (f[4] / scale, f[5] / scale)
+            f = self._f = f + (_NAN if self.x_unset else f[4] / scale, _NAN if self.y_unset else f[5] / scale)
         return f
 
     @property
