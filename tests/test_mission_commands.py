@@ -213,3 +213,58 @@ def test_mavsdk_mission_with_loiter_time_flies_to_the_end(vehicle):
         assert progress.total == len(items) and progress.current == progress.total, progress
         assert mission.is_mission_finished()
     v.check_alive()
+
+
+# --- on MicroPython: the check and its refusal text allocate nothing -----------------
+CHECK_SCRIPT = """
+import struct
+nan = float("nan")
+import sys
+from harness import Bench, Board, heap_requests
+from mavstack.services import mission_items
+
+class B(Board):
+    MISSION_CAPACITY = 20
+    FENCE_CAPACITY = 4
+    RALLY_CAPACITY = 2
+
+b = Bench(services=("status", "commands", "missions"), board=B, storage="ram")
+m = b.ep.services["missions"]
+status = b.ep.services["status"]
+m.t_store = m.stores[0]
+m.t_count = 5
+items = []
+for frame, command, p1, x, y, z in %r:
+    p = bytearray(38)
+    struct.pack_into("<ffffiifHHBBBBB", p, 0, p1, 0.0, 0.0, 0.0, x, y, z, 1, command, 1, 1, frame, 0, 1)
+    items.append(p)
+results = [0] * len(items)
+
+class Run:
+    def go(self, _):
+        i = 0
+        while i < len(items):
+            results[i] = mission_items.check(m, items[i], True, i + 1)
+            i += 1
+
+requested = heap_requests(Run().go, 0)
+print(results)
+print(requested, status.texts.count, status.texts.text(0), status.texts.text(status.texts.count - 1))
+"""
+
+
+def test_check_and_refusal_text_allocate_nothing_on_micropython():
+    import os
+
+    from conftest import ROOT, run_mpy
+
+    cases = [(3, 22, 0.0, INT32_MAX, INT32_MAX, 10.0), (2, 93, 1.0, 0, 0, 0.0), (2, 2000, 0.0, 0, 0, NAN),
+             (3, 195, 0.0, LAT0, LON0, 5.0), (2, 31000, 0.0, 0, 0, 0.0), (1, 16, 0.0, 0, 0, 5.0),
+             (2, 93, NAN, 0, 0, 0.0), (3, 16, 0.0, INT32_MAX, LON0, 5.0)]
+    r = run_mpy(CHECK_SCRIPT % (cases,), path=[os.path.join(ROOT, "tests", "mpy")])
+    assert r.returncode == 0, r.stdout + r.stderr
+    lines = r.stdout.strip().splitlines()
+    assert lines[0] == "[0, 0, 0, 0, 3, 2, 6, 10]"
+    requested, count, _ = lines[1].split(" ", 2)
+    assert requested == "0" and count == "8", lines[1]  # two passes, four refusals each
+    assert lines[1].endswith("Mission item 5: cmd 31000 unsupported Mission item 8: cmd 16 x/lat invalid"), lines[1]

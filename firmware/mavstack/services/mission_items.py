@@ -118,7 +118,7 @@ def check(m, p, is_int, seq):
     STATUSTEXT naming the item, its command and what is wrong with it."""
     result = _check(m, p, is_int, seq)
     if result != _ACCEPTED:
-        _refused(m, seq, u16(p, 30), result)
+        _refused(m, seq, result)
     return result
 
 
@@ -196,23 +196,21 @@ def unset(buf, o):
 # "Mission item 12: cmd 31000 unsupported", written into a buffer made at import: a
 # refusal is rare, but the board may run with its heap locked.
 _TEXT = bytearray(50)
+_ZEROS = bytes(50)
 _PLAN = (b"Mission item ", b"Fence item ", b"Rally item ")
 _WHY = (b" frame ", b" unsupported", b" invalid", b" param", b" x/lat", b" y/lon", b" z/alt")
 
 
-def _refused(m, seq, command, result):
-    # Statement by statement, few values on the stack (a frame state over about 11 words
-    # would come from the heap).
-    t = _TEXT
-    n = _text(t, 0, _PLAN[m.t_store.mission_type])
-    n = _digits(t, n, seq)
-    n = _text(t, n, b": cmd ")
-    n = _digits(t, n, command)
-    n = _why(t, n, result, m._rec[30])
-    while n < len(t):
-        t[n] = 0
-        n += 1
-    m.ep.statustext(_SEVERITY_ERROR, t)
+def _refused(m, seq, result):
+    # Statement by statement, few values on the stack: a frame state over about 11
+    # words would come from the heap. The command and frame are in the record.
+    n = _text(_TEXT, 0, _PLAN[m.t_store.mission_type])
+    n = _digits(_TEXT, n, seq)
+    n = _text(_TEXT, n, b": cmd ")
+    n = _digits(_TEXT, n, u16(m._rec, 28))
+    n = _why(_TEXT, n, result, m._rec[30])
+    _text(_TEXT, n, _ZEROS)
+    m.ep.statustext(_SEVERITY_ERROR, _TEXT)
 
 
 def _why(t, n, result, frame):
