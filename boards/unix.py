@@ -42,7 +42,7 @@ def application(endpoint):
 # params
 from unix_params import PARAMS  # noqa: E402  (the table: boards/unix_params.py)
 
-PARAM_ENCODING = "bytewise"  # integers in param_value: "bytewise" (QGC, MAVSDK) or "c_cast"
+PARAM_ENCODING = "auto"  # integers in param_value: "auto" (each link as its ground station assumes), "bytewise" or "c_cast"
 PARAM_AUTOSAVE_MS = 2000  # save this long after the last change (0: on PREFLIGHT_STORAGE only)
 PARAM_SYSID = "MAV_SYS_ID"  # the read-only parameter that shows the system id
 

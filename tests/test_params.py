@@ -100,19 +100,75 @@ def test_set_float_and_int(vehicle):
     assert raw_value(read(m, b"BATT_CAPACITY")) == struct.pack("<i", 6100)
 
 
-@pytest.mark.parametrize("name, value, ptype, why", [
-    ("SIM_SPEED", 31.0, 9, "range"),
-    ("SIM_SPEED", float("nan"), 9, "NaN"),
-    ("BATT_CAPACITY", 6100.0, 9, "type"),
-    ("MAV_SYS_ID", as_float("<i", 9), 6, "read-only"),
+@pytest.mark.parametrize("name, value, ptype, why, error", [
+    ("SIM_SPEED", 31.0, 9, "range", 2),  # MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE
+    ("SIM_SPEED", float("nan"), 9, "NaN", 2),
+    ("BATT_CAPACITY", as_float("<h", 61), 4, "type", 7),  # TYPE_MISMATCH
+    ("BATT_CAPACITY", 6100.5, 9, "whole", 2),  # declared a float: cast, not a whole number
+    ("BATT_CAPACITY", 3e9, 9, "range", 2),
+    ("MAV_SYS_ID", as_float("<i", 9), 6, "read-only", 5),  # READ_ONLY
 ])
-def test_refused_set_answers_value_in_force(vehicle, name, value, ptype, why):
+def test_refused_set_answers_value_in_force(vehicle, name, value, ptype, why, error):
     m = vehicle().gcs()
     before = read(m, name.encode())
     m.mav.param_set_send(1, 1, name.encode(), value, ptype)
+    err = recv(m, "PARAM_ERROR", 3, lambda x: x.param_id == name)
+    assert err is not None and err.error == error and err.target_system == 255
+    assert err.param_index == NAMES.index(name)
     msg = recv(m, "PARAM_VALUE", 3, lambda x: x.param_id == name)
-    assert raw_value(msg) == raw_value(before)
+    if ptype == 9 and before.param_type != 9:  # a cast: the link is answered C-cast now
+        assert msg.param_value == struct.unpack("<i", raw_value(before))[0]
+    else:
+        assert raw_value(msg) == raw_value(before)
     assert recv(m, "STATUSTEXT", 3, lambda t: name in t.text and why in t.text) is not None
+
+
+def test_unknown_names_get_param_error(vehicle):
+    m = vehicle().gcs()
+    m.mav.param_set_send(1, 1, b"NO_SUCH_PARAM", 1.0, 9)
+    err = recv(m, "PARAM_ERROR", 3)
+    assert err.param_id == "NO_SUCH_PARAM" and err.error == 1 and err.param_index == -1  # DOES_NOT_EXIST
+    m.mav.param_request_read_send(1, 1, b"NOR_THIS", -1)
+    err = recv(m, "PARAM_ERROR", 3)
+    assert err.param_id == "NOR_THIS" and err.error == 1
+    m.mav.param_request_read_send(1, 1, b"", N + 3)
+    err = recv(m, "PARAM_ERROR", 3)
+    assert err.param_index == N + 3 and err.error == 1
+
+
+def test_real32_typed_set_of_an_integer_is_a_cast_and_turns_the_link_c_cast(vehicle):
+    """A sender that declares a float for an integer parameter means the number; under
+    "auto" its link is answered C-cast from then on, the other links stay bytewise."""
+    p1, p2 = free_udp_port(), free_udp_port()
+    v = vehicle(links=["udpin:127.0.0.1:%d" % p1, "udpin:127.0.0.1:%d" % p2])
+    a = v.gcs(port=p1)
+    b = v.gcs(port=p2, source_system=254)
+    assert raw_value(read(a, b"BATT_CAPACITY")) == struct.pack("<i", 5000)
+    msg = set_param(a, "BATT_CAPACITY", 6100.0, 9)
+    assert msg.param_type == 6 and msg.param_value == 6100.0
+    assert read(a, b"BATT_CAPACITY").param_value == 6100.0
+    msg = recv(b, "PARAM_VALUE", 3, lambda x: x.param_id == "BATT_CAPACITY")
+    assert raw_value(msg) == struct.pack("<i", 6100)  # the other link: bytewise
+    # Typed as the parameter on a C-cast link: the float holds the number.
+    assert set_param(a, "BATT_CAPACITY", 4200.0, 6).param_value == 4200.0
+    assert raw_value(read(b, b"BATT_CAPACITY")) == struct.pack("<i", 4200)
+    # Bytewise, typed as the parameter: its bytes.
+    b.mav.param_set_send(1, 1, b"BATT_CAPACITY", as_float("<i", 3300), 6)
+    assert recv(b, "PARAM_VALUE", 3, lambda x: raw_value(x) == struct.pack("<i", 3300)) is not None
+    assert recv(a, "PARAM_VALUE", 3, lambda x: x.param_value == 3300.0) is not None
+
+
+def test_auto_encoding_follows_what_the_ground_station_does(vehicle):
+    m = vehicle().gcs()
+    assert raw_value(read(m, b"BATT_CAPACITY")) == struct.pack("<i", 5000)  # nothing heard: bytewise
+    m.mav.request_data_stream_send(1, 1, 0, 4, 1)  # ArduPilot's convention: C-cast
+    deadline = time.time() + 3
+    while time.time() < deadline and read(m, b"BATT_CAPACITY").param_value != 5000.0:
+        time.sleep(0.1)
+    assert read(m, b"BATT_CAPACITY").param_value == 5000.0
+    caps = command(m, 512, 148)  # asks for AUTOPILOT_VERSION: told bytewise, answered so
+    assert caps is not None
+    assert raw_value(read(m, b"BATT_CAPACITY")) == struct.pack("<i", 5000)
 
 
 def test_persist_across_restart_and_reload(vehicle, tmp_path):

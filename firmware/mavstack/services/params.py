@@ -51,6 +51,14 @@ _MSG_PARAM_REQUEST_READ = const(20)
 _MSG_PARAM_REQUEST_LIST = const(21)
 _MSG_PARAM_VALUE = const(22)
 _MSG_PARAM_SET = const(23)
+_MSG_REQUEST_DATA_STREAM = const(66)
+_MSG_COMMAND_INT = const(75)
+_MSG_COMMAND_LONG = const(76)
+_MSG_PARAM_ERROR = const(345)
+_PARAM_ERROR_LEN = const(21)
+
+_CMD_REQUEST_AUTOPILOT_CAPABILITIES = const(520)
+_CMD_REQUEST_MESSAGE = const(512)
 
 _CMD_DO_SET_PARAMETER = const(180)
 _CMD_PREFLIGHT_STORAGE = const(245)
@@ -68,6 +76,13 @@ _SEVERITY_INFO = const(6)
 _CAP_PARAM_ENCODE_BYTEWISE = const(16)
 _CAP_PARAM_ENCODE_C_CAST = const(131072)
 
+# MAV_PARAM_ERROR: what PARAM_ERROR tells the asker (as well as the value in force)
+_ERR_DOES_NOT_EXIST = const(1)
+_ERR_OUT_OF_RANGE = const(2)
+_ERR_PERMISSION_DENIED = const(3)
+_ERR_READ_ONLY = const(5)
+_ERR_TYPE_MISMATCH = const(7)
+
 # Pacing: the link's budget decides; a tick sends at most this many values a link.
 _MAX_PER_TICK = const(8)
 _VALUE_FRAME = const(37)  # bytes of a MAVLink 2 PARAM_VALUE (unsigned), asked of the budget
@@ -84,9 +99,12 @@ class Params(ParamTable):
     NAME = "params"
 
     def __init__(self, table, encoding="bytewise", autosave_ms=0, sysid_param=None):
-        if encoding not in ("bytewise", "c_cast"):
-            raise ValueError("PARAM_ENCODING is 'bytewise' or 'c_cast'")
-        super().__init__(table, encoding == "c_cast")
+        if encoding not in ("bytewise", "c_cast", "auto"):
+            raise ValueError("PARAM_ENCODING is 'bytewise', 'c_cast' or 'auto'")
+        # "auto" keeps both forms of every value (the C-cast copy in self._wire) and
+        # answers each link in the encoding its ground station assumes (_heard_*).
+        super().__init__(table, encoding != "bytewise")
+        self.auto = encoding == "auto"
         self.autosave_ms = autosave_ms
         self.sysid_param = sysid_param
         self.on_change = None  # on_change(name, value)
@@ -99,6 +117,8 @@ class Params(ParamTable):
         self._pending = []
         self._answers = []
         self._cursor = []
+        self._casts = bytearray()  # per link: 1 when its PARAM_VALUEs travel C-cast
+        self._error = 0  # the MAV_PARAM_ERROR of the refusal being answered
         self._text = bytearray(_TEXT_LEN)  # "NAME applies after reboot", made in place
         self._data = self._image  # what _load read the file into
         self._guard = _Guard()
@@ -108,7 +128,15 @@ class Params(ParamTable):
         ep.on(_MSG_PARAM_REQUEST_LIST, self._on_list)
         ep.on(_MSG_PARAM_REQUEST_READ, self._on_read)
         ep.on(_MSG_PARAM_SET, self._on_set)
-        ep.capabilities |= _CAP_PARAM_ENCODE_C_CAST if self.c_cast else _CAP_PARAM_ENCODE_BYTEWISE
+        # "auto" tells the ground stations that ask (MAVSDK, QGroundControl) bytewise,
+        # and answers them so (_heard_command).
+        cast = self.c_cast and not self.auto
+        ep.capabilities |= _CAP_PARAM_ENCODE_C_CAST if cast else _CAP_PARAM_ENCODE_BYTEWISE
+        self._errors = ep.has(_MSG_PARAM_ERROR)  # not in the seed's dialect
+        if self.auto:
+            ep.on(_MSG_REQUEST_DATA_STREAM, self._heard_streams)
+            ep.on(_MSG_COMMAND_LONG, self._heard_command)
+            ep.on(_MSG_COMMAND_INT, self._heard_command)
         ep.commands[_CMD_DO_SET_PARAMETER] = self._do_set_parameter
         # A service attached later that also answers PREFLIGHT_STORAGE (missions: param2)
         # wraps this entry the same way.
@@ -128,6 +156,7 @@ class Params(ParamTable):
             self._pending.append(0)
             self._answers.append(0)
             self._cursor.append(0)
+            self._casts.append(1 if self.c_cast and not self.auto else 0)
 
     # --- sending, paced ------------------------------------------------------------
     def tick(self, now):
@@ -186,11 +215,11 @@ class Params(ParamTable):
 
     def _send(self, link, i):
         """One PARAM_VALUE for parameter i, copied straight from the table."""
-        self._fill(link.txbuf, link.begin(), i)
+        self._fill(link.txbuf, link.begin(), i, self._casts[link.index])
         return link.send(_MSG_PARAM_VALUE)
 
-    def _fill(self, buf, off, i):
-        _copy4(buf, off, self._wire, 4 * i)
+    def _fill(self, buf, off, i, cast):
+        _copy4(buf, off, self._wire if cast else self._values, 4 * i)
         _put16(buf, off + 4, self.count)
         _put16(buf, off + 6, i)
         _move(buf, off + 8, self._names, ID_LEN * i, ID_LEN)
@@ -245,9 +274,11 @@ class Params(ParamTable):
             i = self._by_name(p, 4)
             if i < 0:
                 self._unknown(p, 4)
+                self._deny(link, p, 4, -1, _ERR_DOES_NOT_EXIST)
                 return
         elif i >= self.count:
             self.ep.statustext(_SEVERITY_WARNING, b"param index unknown")
+            self._deny(link, p, 4, i, _ERR_DOES_NOT_EXIST)
             return
         self._reply(link, i)
 
@@ -257,12 +288,14 @@ class Params(ParamTable):
         i = self._by_name(p, 6)
         if i < 0:
             self._unknown(p, 6)
+            self._deny(link, p, 6, -1, _ERR_DOES_NOT_EXIST)
             return
         why = self._may_set(link, i, p)
         if why is None:
-            # C-cast, the bytes are a float holding the value; bytewise, in its type
-            # (accept reads REAL32 parameters as floats either way).
-            why = self.accept(i, p, 0, self.c_cast)
+            why = self.accept(i, p, 0, self._cast_in(link, i, p))
+            self._error = _ERR_OUT_OF_RANGE  # (NaN, a fraction: no value it may take)
+        if why is not None:
+            self._deny(link, p, 6, i, self._error)  # first: MAVSDK takes it as the answer
         self._reply(link, i)
         if why is not None:
             self._refused(i, why)
@@ -276,18 +309,75 @@ class Params(ParamTable):
     def _may_set(self, link, i, p):
         """None if PARAM_SET p may change parameter i, else why not."""
         why = self._may_change(link, i)
-        if why is None and p[22] != self._types[i] and not (self.c_cast and p[22] == REAL32):
-            # Bytewise, the type says how to read the bytes: another one would misread them.
+        if why is None and p[22] != self._types[i] and p[22] != REAL32:
+            # Another integer type: its bytes would be misread.
+            self._error = _ERR_TYPE_MISMATCH
             why = _type_why(p[22], self._types[i])
         return why
 
     def _may_change(self, link, i):
         """None if a ground station on link may change parameter i, else why not."""
         if not self.ep.allows(link):
+            self._error = _ERR_PERMISSION_DENIED
             return "not in control"
         if self._flags[i] & READ_ONLY:
+            self._error = _ERR_READ_ONLY
             return "read-only"
         return None
+
+    def _cast_in(self, link, i, p):
+        """Whether PARAM_SET p holds parameter i's value as a float (C-cast) rather than
+        in its type's bytes. Typed REAL32 for an integer parameter it does: the sender
+        declared a float (MAVProxy, pymavlink's param_set_send), and under "auto" its
+        link is answered C-cast from then on. Typed as the parameter, the link's
+        encoding says (REAL32 parameters read as floats either way)."""
+        self._link_state(link)
+        if p[22] != REAL32 or self._types[i] == REAL32:
+            return self._casts[link.index]
+        if self.auto:
+            self._casts[link.index] = 1
+        return 1
+
+    # --- which encoding a link's ground station assumes ("auto") ----------------------
+    # Ground stations do not read the capability bits to decode integers: MAVSDK and
+    # QGroundControl go bytewise for any autopilot but ArduPilot, MAVProxy and pymavlink's
+    # mavparm C-cast for any but PX4. What a station does tells them apart, and the last
+    # sign heard on a link decides: asking for AUTOPILOT_VERSION (MAVSDK, QGroundControl:
+    # told bytewise), REQUEST_DATA_STREAM (ArduPilot's convention: MAVProxy, Mission
+    # Planner) or a PARAM_SET typed REAL32 for an integer parameter (C-cast). Bytewise
+    # until one is heard.
+    def _heard_streams(self, link, p):
+        if self.ep.for_us(p[2], p[3]):
+            self._link_state(link)
+            self._casts[link.index] = 1
+
+    def _heard_command(self, link, p):
+        """COMMAND_LONG / COMMAND_INT (command at 28, param1 at 0): a request for
+        AUTOPILOT_VERSION (REQUEST_MESSAGE 148, REQUEST_AUTOPILOT_CAPABILITIES)."""
+        c = p[29] << 8 | p[28]
+        if c == _CMD_REQUEST_AUTOPILOT_CAPABILITIES or (c == _CMD_REQUEST_MESSAGE and _is_148(p)):
+            if self.ep.for_us(p[30], p[31]):
+                self._link_state(link)
+                self._casts[link.index] = 0
+
+    def _deny(self, link, p, o, i, error):
+        """PARAM_ERROR to the asker on link (where the dialect has it): the name as sent
+        at p[o:], index i (-1: asked by name). Made in place, in frames small enough for
+        the C stack: a refusal costs no heap."""
+        if self._errors:
+            self._error = error
+            self._error_head(link, i)
+            _name_into(link.txbuf, link.begin() + 4, p, o)
+            link.send(_MSG_PARAM_ERROR)
+
+    def _error_head(self, link, i):
+        """PARAM_ERROR's fields but the name: index, target (the asker), error."""
+        buf = link.txbuf
+        d = link.begin()
+        _put16(buf, d, i & 0xFFFF)
+        buf[d + 2] = link.rx.sysid
+        buf[d + 3] = link.rx.compid
+        buf[d + 20] = self._error
 
     def _do_set_parameter(self, cmd):
         """MAV_CMD_DO_SET_PARAMETER: param1 the parameter's index, param2 its value."""
@@ -510,6 +600,15 @@ def _shown(dst, d, p, o):
         dst[d + k] = c if 0x20 < c < 0x7F else 0x3F
         k += 1
     return d + n
+
+
+def _is_148(p):
+    """param1 (p[0:4]) is 148.0, AUTOPILOT_VERSION's id, as a float."""
+    return p[0] == 0 and p[1] == 0 and p[2] == 0x14 and p[3] == 0x43
+
+
+def _name_into(buf, d, p, o):
+    _move(buf, d, p, o, ID_LEN)
 
 
 def _type_why(got, want):
