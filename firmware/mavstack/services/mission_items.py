@@ -1,11 +1,14 @@
 """What a mission item holds, for missions.py: the check of an uploaded item against
 the rules of its plan type (frames the vehicle flies, commands it knows, numbers where
-a command needs them, positions within range, DO_JUMP targets within the plan), its
-32-byte record built on the way (mission_store.py's layout), and the seed's
-MISSION_ITEM float degrees converted to and from MISSION_ITEM_INT's 1e7 integers.
+a command needs them, positions within range or left unset where the command takes
+"where the vehicle is", DO_JUMP targets within the plan), its 32-byte record built on
+the way (mission_store.py's layout), the STATUSTEXT that names a refused item, its
+command and what is wrong, and the seed's MISSION_ITEM float degrees converted to and
+from MISSION_ITEM_INT's 1e7 integers.
 
 Allocation-free on a 32-bit board too: coordinates (1e7 degrees reach 1.8e9) stay in
-their bytes, are range-checked by 16-bit halves and converted by small-int arithmetic.
+their bytes, are range-checked by 16-bit halves and converted by small-int arithmetic;
+the refusal's text is written into a buffer made at import.
 m is the missions.Missions service (its record buffer, frames, extra commands and the
 upload under way); each function keeps within 11 words of locals and stack.
 """
@@ -95,10 +98,14 @@ _MISSION_RULES = (
     b"\xce\x00\x01"  # 206 DO_SET_CAM_TRIGG_DIST: _P1 (metres, 0: stop)
     b"\xd6\x00\x01"  # 214 DO_SET_CAM_TRIGG_INTERVAL: _P1 (ms)
     b"\xe8\x03\x00"  # 1000 DO_GIMBAL_MANAGER_PITCHYAW (NaN: no change)
+    b"\x12\x02\x00"  # 530 SET_CAMERA_MODE
+    b"\x13\x02\x00"  # 531 SET_CAMERA_ZOOM
+    b"\x14\x02\x00"  # 532 SET_CAMERA_FOCUS
     b"\xd0\x07\x00"  # 2000 IMAGE_START_CAPTURE
     b"\xd1\x07\x00"  # 2001 IMAGE_STOP_CAPTURE
     b"\xc4\x09\x00"  # 2500 VIDEO_START_CAPTURE
     b"\xc5\x09\x00"  # 2501 VIDEO_STOP_CAPTURE
+    b"\x95\x11\x80"  # 4501 CONDITION_GATE: _POS (a survey's line ends)
 )
 _FENCE_RULES = (
     b"\x88\x13\x80"  # 5000 NAV_FENCE_RETURN_POINT: _POS
