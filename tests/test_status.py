@@ -350,3 +350,52 @@ def test_state_override_and_mode_hook():
     assert status.set_mode(16, 7) == 2 and status.custom_mode == 0  # not in the table
     status.custom_modes = ((7, "SEVEN", 16),)
     assert status.set_mode(4 | 1, 7) == 0 and status.base_mode == 128 | 16 | 1 and status.custom_mode == 7
+
+
+def _sensor_words(b):
+    got = []
+
+    def watch(msgid, p):
+        if msgid == 1:
+            got.append(tuple(int.from_bytes(bytes(p[i:i + 4]), "little") for i in (0, 4, 8)))
+
+    b.watch = watch
+    return got
+
+
+def test_sys_status_prearm_and_geofence_bits_beside_the_applications(tmp_path):
+    PREARM, FENCE = 0x10000000, 0x100000
+    b = Bench(services=("status", "missions", "commands"), storage=str(tmp_path))
+    status = b.ep.services["status"]
+    app = 0x80000000 | 0x20000000 | 1  # the application's bits, bit 31 among them, stay its own
+    status.set_sensors(app | PREARM | FENCE, app, app)  # ours are not the application's to set
+    got = _sensor_words(b)
+    b.run(1100)
+    assert got[-1] == (app | PREARM, app | PREARM, app | PREARM | FENCE)
+    objection = ["not ready"]
+    status.arm_check = lambda arm: objection[0]
+    b.run(1100)
+    assert got[-1][2] == app | FENCE  # arming would be refused
+    assert status.arm(True) == 2
+    objection[0] = (1, "warming up")  # TEMPORARILY_REJECTED is no green light either
+    b.run(1100)
+    assert not got[-1][2] & PREARM
+    objection[0] = (0, "fine")  # ACCEPTED with a word
+    b.run(1100)
+    assert got[-1][2] & PREARM
+    status.arm_check = lambda arm: 1 // 0  # a broken check
+    b.run(1100)
+    assert not got[-1][2] & PREARM
+    assert status.arm(True, force=True) == 0
+    b.run(1100)
+    assert got[-1][2] & PREARM  # armed: nothing stands in the way
+    # A fence the application checks, and a fence plan: present, enabled, healthy until breached.
+    status.fence_enabled = True
+    b.run(1100)
+    assert not got[-1][0] & FENCE  # no fence plan stored
+    b.ep.services["missions"].stores[1].count = 4  # as a stored fence plan of 4 items says
+    b.run(1100)
+    assert got[-1][0] & FENCE and got[-1][1] & FENCE and got[-1][2] & FENCE
+    status.fence_breached = True
+    b.run(1100)
+    assert got[-1][0] & FENCE and not got[-1][2] & FENCE
