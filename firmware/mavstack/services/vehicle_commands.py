@@ -4,6 +4,8 @@ COMPONENT_ARM_DISARM (400), DO_SET_MODE (176), PREFLIGHT_REBOOT_SHUTDOWN (246),
 REQUEST_AUTOPILOT_CAPABILITIES (520), GET_HOME_POSITION (410), DO_SET_HOME (179).
 Installed into endpoint.commands by status.attach; the commands service sends the
 ACKs. Commands that change the vehicle need operator control when a passkey is set.
+DO_SET_MODE to a mode the vehicle does not have (a flag it does not support, a custom
+mode not in the board's CUSTOM_MODES) is DENIED by status.set_mode, which says why.
 """
 from ..compat import const
 from .statustext import CRITICAL, WARNING
