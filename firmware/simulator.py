@@ -299,6 +299,7 @@ class MissionPilot:
         self._yaw_target = None
         self._changed = {}  # DO_CHANGE_SPEED's speeds ("speed", "climb", "sink") until a restart
         self._wait = None  # NAV_DELAY: seconds to wait
+        self._travel = 0.0  # metres flown since the last distance-triggered photo
 
     def step(self, dt):
         runner = self.missions.runner if self.missions is not None else None
@@ -483,8 +484,9 @@ class MissionPilot:
             pitch, yaw = sim.gimbal
             sim.gimbal = (pitch if math.isnan(item.param1) else item.param1,
                           yaw if math.isnan(item.param2) else item.param2)
-        elif cmd == 206:  # DO_SET_CAM_TRIGG_DIST: a photo every param1 m (0: stop)
+        elif cmd == 206:  # DO_SET_CAM_TRIGG_DIST: a photo every param1 m (0: stop), param3 1: one now
             sim.trigger_dist = max(item.param1, 0.0)
+            self._travel = 0.0
             sim.photos = sim.photos + (1 if item.param3 == 1 and item.param1 > 0 else 0)
         elif cmd == 214:  # DO_SET_CAM_TRIGG_INTERVAL
             sim.trigger_dist = 0.0
@@ -513,6 +515,11 @@ class MissionPilot:
         me = de / dist * step if dist > 0 else 0.0
         md = -vstep if du > 0 else vstep
         sim.vn, sim.ve, sim.vd = mn / dt, me / dt, md / dt
+        if sim.trigger_dist > 0:  # DO_SET_CAM_TRIGG_DIST: a photo every so many metres
+            self._travel += step
+            while self._travel >= sim.trigger_dist:
+                self._travel -= sim.trigger_dist
+                sim.photos += 1
         if sim.roi is not None:
             sim.heading = _bearing(sim, sim.roi)  # the nose on the region of interest
         elif dist > 0.5:

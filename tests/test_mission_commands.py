@@ -268,3 +268,58 @@ def test_check_and_refusal_text_allocate_nothing_on_micropython():
     requested, count, _ = lines[1].split(" ", 2)
     assert requested == "0" and count == "8", lines[1]  # two passes, four refusals each
     assert lines[1].endswith("Mission item 5: cmd 31000 unsupported Mission item 8: cmd 16 x/lat invalid"), lines[1]
+
+
+def test_simulator_carries_out_roi_camera_gimbal_and_speed(tmp_path):
+    """In-process (CPython): the simulator as the unix board's application, its clock
+    stepped 20 ms at a time. Flying north with a region of interest to the east, the nose
+    points east; distance-triggered photos follow the metres flown; gimbal angles, video
+    and a changed speed stay as the items set them."""
+    import os
+    import sys
+
+    from conftest import ROOT
+
+    sys.path.insert(0, os.path.join(ROOT, "firmware"))
+    from simulator import Simulator
+
+    r = Rig(tmp_path, services=("status", "commands", "missions"),
+            options={"sim_speed": "50", "sim_climb": "50"})
+    items = [Item(3, 22, 0, 1, 0.0, 0.0, 0.0, NAN, INT32_MAX, INT32_MAX, 10.0),
+             Item(3, 195, 0, 1, 0.0, 0.0, 0.0, 0.0, LAT0, LON0 + 500000, 10.0),  # ROI 3.8 km east
+             Item(2, 2000, 0, 1, 0.0, 0.0, 1.0, 0.0, 0, 0, NAN),  # one photo
+             Item(2, 206, 0, 1, 10.0, 0.0, 0.0, 0.0, 0, 0, NAN),  # a photo every 10 m
+             Item(3, 16, 0, 1, 0.0, 2.0, 0.0, NAN, LAT0 + 9000, LON0, 10.0),  # 100 m north
+             Item(2, 206, 0, 1, 0.0, 0.0, 0.0, 0.0, 0, 0, NAN),  # no more
+             Item(2, 205, 0, 1, -90.0, 0.0, 0.0, 0.0, 0, 0, 2.0),  # mount pitch -90
+             Item(2, 1000, 0, 1, NAN, 30.0, NAN, NAN, 0, 0, 0.0),  # gimbal yaw 30, pitch kept
+             Item(2, 197, 0, 1, 0.0, 0.0, 0.0, 0.0, 0, 0, 0.0),  # ROI none
+             Item(2, 2500, 0, 1, 0.0, 0.0, 0.0, 0.0, 0, 0, NAN),  # video on
+             Item(2, 178, 0, 1, 1.0, 3.0, -1.0, 0.0, 0, 0, NAN),  # 3 m/s
+             Item(2, 93, 0, 1, 0.5, -1.0, -1.0, -1.0, 0, 0, 0.0),  # NAV_DELAY 0.5 s
+             Item(3, 16, 0, 1, 0.0, 2.0, 0.0, NAN, LAT0 + 9000, LON0 + 100, 10.0)]  # 7.5 m east
+    assert r.upload(items) == ACCEPTED
+    sim = Simulator(r.ep)
+    r.b.app = sim
+    status = r.ep.services["status"]
+    runner = r.missions.runner
+    status.arm(True)
+    status.set_mode(4 | 1 | 128)  # AUTO, custom mode flag, armed
+    headings = []
+    delay_ms = 0
+    for _ in range(3000):
+        r.b.run(1, 20)
+        r.take()
+        if runner.current == 4 and runner.state == 3:
+            headings.append(math.degrees(sim.heading) % 360.0)
+        if runner.current == 11:
+            delay_ms += 20
+        if runner.state == COMPLETE:
+            break
+    assert runner.state == COMPLETE, (runner.current, runner.state)
+    assert len(headings) > 5 and all(80 < h < 100 for h in headings[3:]), str([round(h) for h in headings])  # the nose on the ROI
+    assert sim.roi is None and sim.video and sim.gimbal == (-90.0, 30.0)
+    assert 10 <= sim.photos <= 12, sim.photos  # one, then one per 10 m of the 100 m leg
+    assert sim._pilot.speed == 3.0
+    assert 480 <= delay_ms <= 560
+    assert abs(sim.alt - 488.0 - 10.0) < 0.6
