@@ -452,7 +452,7 @@ class MissionPilot:
         if item.param2 == -2:
             self._changed.pop(name, None)
             self._settings()
-        elif item.param2 > 0:
+        elif 0 < item.param2 < 1e6:  # (a finite speed, whatever a plan says)
             self._changed[name] = item.param2
             setattr(self, name, item.param2)
 
@@ -485,7 +485,7 @@ class MissionPilot:
             sim.gimbal = (pitch if math.isnan(item.param1) else item.param1,
                           yaw if math.isnan(item.param2) else item.param2)
         elif cmd == 206:  # DO_SET_CAM_TRIGG_DIST: a photo every param1 m (0: stop), param3 1: one now
-            sim.trigger_dist = max(item.param1, 0.0)
+            sim.trigger_dist = item.param1 if item.param1 >= 0.1 else 0.0  # (a camera's shortest)
             self._travel = 0.0
             sim.photos = sim.photos + (1 if item.param3 == 1 and item.param1 > 0 else 0)
         elif cmd == 214:  # DO_SET_CAM_TRIGG_INTERVAL
@@ -517,9 +517,10 @@ class MissionPilot:
         sim.vn, sim.ve, sim.vd = mn / dt, me / dt, md / dt
         if sim.trigger_dist > 0:  # DO_SET_CAM_TRIGG_DIST: a photo every so many metres
             self._travel += step
-            while self._travel >= sim.trigger_dist:
-                self._travel -= sim.trigger_dist
-                sim.photos += 1
+            if self._travel >= sim.trigger_dist:
+                shots = int(self._travel // sim.trigger_dist)
+                sim.photos += shots
+                self._travel -= shots * sim.trigger_dist
         if sim.roi is not None:
             sim.heading = _bearing(sim, sim.roi)  # the nose on the region of interest
         elif dist > 0.5:
@@ -561,17 +562,18 @@ def _bearing(sim, point):
 
 
 def _until(hour, minute, second):
-    """Seconds from now to the next hour:minute:second UTC (-1 hour: any hour, -1
-    minute: any minute; NaN counts as -1)."""
+    """Seconds from now to the next hour:minute:second UTC (an hour outside 0-23: any
+    hour, a minute outside 0-59: any minute; NaN is outside)."""
     import time
 
-    now = time.time()
-    day = int(now) % 86400
-    best = None
-    for h in range(24) if not hour >= 0 else (int(hour) % 24,):
-        for mi in range(60) if not minute >= 0 else (int(minute) % 60,):
-            t = h * 3600 + mi * 60 + (int(second) % 60 if second >= 0 else 0)
-            wait = (t - day) % 86400
-            if best is None or wait < best:
+    day = int(time.time()) % 86400
+    hours = (int(hour),) if 0 <= hour < 24 else range(24)
+    minutes = (int(minute),) if 0 <= minute < 60 else range(60)
+    sec = int(second) if 0 <= second < 60 else 0
+    best = 86400
+    for h in hours:
+        for mi in minutes:
+            wait = (h * 3600 + mi * 60 + sec - day) % 86400
+            if wait < best:
                 best = wait
     return float(best)
