@@ -15,8 +15,11 @@ import unix_params  # noqa: E402
 N = len(unix_params.PARAMS)
 
 
-@pytest.mark.parametrize("encoding", ["bytewise", "c_cast"])
+@pytest.mark.parametrize("encoding", ["auto", "c_cast"])
 def test_mavproxy_fetches_sets_and_commands(vehicle, tmp_path, encoding):
+    """MAVProxy reads integers C-cast from any autopilot but PX4 and sets every value as a
+    float typed REAL32. "auto" (the unix board's default) knows it by its
+    REQUEST_DATA_STREAM at connect; the pymavlink link stays bytewise."""
     v, port, check = two_links(vehicle, "--set", "param_encoding=" + encoding, "--set", "param_autosave_ms=0")
     mp = MavProxy(port, tmp_path, "param,cmdlong")
     try:
@@ -28,13 +31,24 @@ def test_mavproxy_fetches_sets_and_commands(vehicle, tmp_path, encoding):
         mp.say("param set SIM_SPEED 8.5")
         msg = recv(check, "PARAM_VALUE", 10, lambda m: m.param_id == "SIM_SPEED")
         assert msg is not None and msg.param_value == 8.5
-        if encoding == "c_cast":
-            # MAVProxy sends every value as a float tagged REAL32: C-cast takes it as the number.
-            mp.say("param show BATT_CAPACITY")
-            assert float(mp.expect(r"BATT_CAPACITY\s+(\S+)").group(1)) == 5000
-            mp.say("param set BATT_CAPACITY 4200")
-            msg = recv(check, "PARAM_VALUE", 10, lambda m: m.param_id == "BATT_CAPACITY")
-            assert msg is not None and msg.param_value == 4200.0
+        mp.say("param show BATT_CAPACITY")
+        assert float(mp.expect(r"BATT_CAPACITY\s+(\S+)").group(1)) == 5000
+        mp.say("param set BATT_CAPACITY 4200")
+        msg = recv(check, "PARAM_VALUE", 10, lambda m: m.param_id == "BATT_CAPACITY")
+        assert msg is not None
+        if encoding == "auto":
+            assert msg.get_msgbuf()[10:14] == (4200).to_bytes(4, "little")
+        else:
+            assert msg.param_value == 4200.0
+        mp.say("param show BATT_CAPACITY")
+        assert float(mp.expect(r"BATT_CAPACITY\s+(\S+)").group(1)) == 4200
+        mp.say("param set BATT_CAPACITY 4200.5")  # not a whole number: refused, in force stays
+        assert recv(check, "STATUSTEXT", 10, lambda m: "BATT_CAPACITY not set" in m.text) is not None
+        mp.say("param set BATT_CAPACITY 3000")
+        assert recv(check, "PARAM_VALUE", 10, lambda m: m.param_id == "BATT_CAPACITY"
+                    and m.get_msgbuf()[10:14] in ((3000).to_bytes(4, "little"), b"\x00\x80\x3b\x45")) is not None
+        mp.say("param show BATT_CAPACITY")
+        assert float(mp.expect(r"BATT_CAPACITY\s+([-\d.e+]+)\s*$").group(1)) == 3000
         mp.say("long PREFLIGHT_STORAGE 1")
         mp.expect(r"COMMAND_ACK.*PREFLIGHT_STORAGE.*ACCEPTED")
     finally:
@@ -61,3 +75,34 @@ def test_mavsdk_gets_all_and_sets(vehicle):
     check.mav.param_request_read_send(1, 1, b"BATT_LOW_MAH", -1)
     msg = recv(check, "PARAM_VALUE", 5, lambda m: m.param_id == "BATT_LOW_MAH")
     assert msg.get_msgbuf()[10:14] == (950).to_bytes(4, "little")
+
+
+def test_mavsdk_integer_parameters_and_refusals(vehicle):
+    """MAVSDK reads and writes integers bytewise from a generic autopilot; a refusal
+    reaches it as PARAM_ERROR (its result), not as a timeout after its retries."""
+    import time
+    from mavsdk.plugins.param import Param, ParamError, ParamResult
+
+    v, port, check = two_links(vehicle)
+    with mavsdk_system(port) as system:
+        param = Param(system)
+        assert param.get_param_int("BATT_CAPACITY") == 5000
+        param.set_param_int("BATT_CAPACITY", 6100)
+        assert param.get_param_int("BATT_CAPACITY") == 6100
+        param.set_param_int("FLTMODE_CH", -1)
+        assert param.get_param_int("FLTMODE_CH") == -1
+        for name, value, result in (("BATT_CAPACITY", -5, ParamResult.VALUE_OUT_OF_RANGE),
+                                    ("MAV_SYS_ID", 9, ParamResult.READ_ONLY),
+                                    ("NO_SUCH_PARAM", 1, ParamResult.DOES_NOT_EXIST)):
+            t0 = time.monotonic()
+            with pytest.raises(ParamError) as e:
+                param.set_param_int(name, value)
+            assert e.value.result == result and time.monotonic() - t0 < 1.0, (name, e.value.result)
+        t0 = time.monotonic()
+        with pytest.raises(ParamError) as e:
+            param.get_param_int("NO_SUCH_PARAM")
+        assert e.value.result == ParamResult.DOES_NOT_EXIST and time.monotonic() - t0 < 1.0
+        assert param.get_param_int("BATT_CAPACITY") == 6100
+    check.mav.param_request_read_send(1, 1, b"BATT_CAPACITY", -1)
+    msg = recv(check, "PARAM_VALUE", 5, lambda m: m.param_id == "BATT_CAPACITY")
+    assert msg.get_msgbuf()[10:14] == (6100).to_bytes(4, "little")

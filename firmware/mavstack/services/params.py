@@ -47,6 +47,7 @@ from .param_table import _copy4, _move, _put16  # byte moves whose frames fit th
 from .param_table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32, READ_ONLY, REBOOT  # noqa: F401
 from .param_table import UINT64, INT64, REAL64  # noqa: F401  (declaring one is an error)
 
+_MSG_HEARTBEAT = const(0)
 _MSG_PARAM_REQUEST_READ = const(20)
 _MSG_PARAM_REQUEST_LIST = const(21)
 _MSG_PARAM_VALUE = const(22)
@@ -58,6 +59,13 @@ _MSG_PARAM_ERROR = const(345)
 _PARAM_ERROR_LEN = const(21)
 
 _CMD_REQUEST_AUTOPILOT_CAPABILITIES = const(520)
+_MAV_TYPE_GCS = const(6)
+_MAVPROXY_COMPID = const(230)  # MAVProxy's own component id (its source_component)
+
+# _casts: a link's encoding ("auto": what its ground station was seen to assume)
+_BYTEWISE = const(0)  # nothing heard yet
+_CAST = const(1)
+_TOLD = const(2)  # bytewise: it asked for AUTOPILOT_VERSION
 _CMD_REQUEST_MESSAGE = const(512)
 
 _CMD_DO_SET_PARAMETER = const(180)
@@ -134,6 +142,7 @@ class Params(ParamTable):
         ep.capabilities |= _CAP_PARAM_ENCODE_C_CAST if cast else _CAP_PARAM_ENCODE_BYTEWISE
         self._errors = ep.has(_MSG_PARAM_ERROR)  # not in the seed's dialect
         if self.auto:
+            ep.on(_MSG_HEARTBEAT, self._heard_heartbeat)
             ep.on(_MSG_REQUEST_DATA_STREAM, self._heard_streams)
             ep.on(_MSG_COMMAND_LONG, self._heard_command)
             ep.on(_MSG_COMMAND_INT, self._heard_command)
@@ -156,7 +165,7 @@ class Params(ParamTable):
             self._pending.append(0)
             self._answers.append(0)
             self._cursor.append(0)
-            self._casts.append(1 if self.c_cast and not self.auto else 0)
+            self._casts.append(_CAST if self.c_cast and not self.auto else _BYTEWISE)
 
     # --- sending, paced ------------------------------------------------------------
     def tick(self, now):
@@ -219,7 +228,7 @@ class Params(ParamTable):
         return link.send(_MSG_PARAM_VALUE)
 
     def _fill(self, buf, off, i, cast):
-        _copy4(buf, off, self._wire if cast else self._values, 4 * i)
+        _copy4(buf, off, self._wire if cast == _CAST else self._values, 4 * i)
         _put16(buf, off + 4, self.count)
         _put16(buf, off + 6, i)
         _move(buf, off + 8, self._names, ID_LEN * i, ID_LEN)
@@ -333,10 +342,10 @@ class Params(ParamTable):
         encoding says (REAL32 parameters read as floats either way)."""
         self._link_state(link)
         if p[22] != REAL32 or self._types[i] == REAL32:
-            return self._casts[link.index]
+            return self._casts[link.index] == _CAST
         if self.auto:
-            self._casts[link.index] = 1
-        return 1
+            self._casts[link.index] = _CAST
+        return True
 
     # --- which encoding a link's ground station assumes ("auto") ----------------------
     # Ground stations do not read the capability bits to decode integers: MAVSDK and
@@ -344,12 +353,20 @@ class Params(ParamTable):
     # mavparm C-cast for any but PX4. What a station does tells them apart, and the last
     # sign heard on a link decides: asking for AUTOPILOT_VERSION (MAVSDK, QGroundControl:
     # told bytewise), REQUEST_DATA_STREAM (ArduPilot's convention: MAVProxy, Mission
-    # Planner) or a PARAM_SET typed REAL32 for an integer parameter (C-cast). Bytewise
-    # until one is heard.
+    # Planner) or a PARAM_SET typed REAL32 for an integer parameter (C-cast). Before any
+    # of these, a ground station heartbeat from MAVProxy's component id makes the link
+    # C-cast (MAVProxy lists parameters before it sends anything else); otherwise it is
+    # bytewise until one is heard.
+    def _heard_heartbeat(self, link, p):
+        if p[4] == _MAV_TYPE_GCS and link.rx.compid == _MAVPROXY_COMPID:
+            self._link_state(link)
+            if self._casts[link.index] == _BYTEWISE:
+                self._casts[link.index] = _CAST
+
     def _heard_streams(self, link, p):
         if self.ep.for_us(p[2], p[3]):
             self._link_state(link)
-            self._casts[link.index] = 1
+            self._casts[link.index] = _CAST
 
     def _heard_command(self, link, p):
         """COMMAND_LONG / COMMAND_INT (command at 28, param1 at 0): a request for
@@ -358,7 +375,7 @@ class Params(ParamTable):
         if c == _CMD_REQUEST_AUTOPILOT_CAPABILITIES or (c == _CMD_REQUEST_MESSAGE and _is_148(p)):
             if self.ep.for_us(p[30], p[31]):
                 self._link_state(link)
-                self._casts[link.index] = 0
+                self._casts[link.index] = _TOLD
 
     def _deny(self, link, p, o, i, error):
         """PARAM_ERROR to the asker on link (where the dialect has it): the name as sent
