@@ -285,10 +285,11 @@ def test_read_by_index_ignores_the_name(tmp_path):
 
 @pytest.mark.parametrize("name, index", [(b"NO_SUCH_PARAM", -1), (b"WP_SPEEDX", -1), (b"WP_SPEE", -1),
                                          (b"", -1), (b"", N), (b"", 30000)])
-def test_read_unknown_gets_statustext_only(tmp_path, name, index):
+def test_read_unknown_gets_param_error_and_statustext(tmp_path, name, index):
     b = Rig(tmp_path)
     got = b.ask(mav.MAVLink_param_request_read_message(1, 1, name, index))
-    assert got == []
+    assert [m.get_type() for m in got] == ["PARAM_ERROR"]
+    assert got[0].error == 1 and got[0].param_index == index and got[0].param_id == name.decode()
     assert len(b.texts.texts) == 1 and "unknown" in b.texts.texts[0]
 
 
@@ -334,25 +335,29 @@ def test_mixed_types_listed_bytewise(tmp_path):
     assert [m.param_type for m in got] == [row[1] for row in MIXED]
 
 
-@pytest.mark.parametrize("name, value, ptype, reason", [
-    ("SIM_SPEED", 45.0, P.REAL32, "range"),
-    ("SIM_SPEED", 0.1, P.REAL32, "range"),
-    ("SIM_SPEED", float("nan"), P.REAL32, "NaN"),
-    ("SIM_SPEED", float("inf"), P.REAL32, "finite"),
-    ("SIM_SPEED", -float("inf"), P.REAL32, "finite"),
-    ("SIM_SPEED", as_float("<i", 6), P.INT32, "type"),
-    ("BATT_CAPACITY", 6000.0, P.REAL32, "type"),
-    ("BATT_CAPACITY", as_float("<i", -5), P.INT32, "range"),
-    ("U8", as_float("<B", 201), P.UINT8, "range"),
-    ("I8", as_float("<b", -101), P.INT8, "range"),
-    ("U8", as_float("<i", 12), P.INT32, "type"),
-    ("MAV_SYS_ID", as_float("<i", 7), P.INT32, "read-only"),
-    ("RO", as_float("<B", 7), P.UINT8, "read-only"),
+@pytest.mark.parametrize("name, value, ptype, reason, error", [
+    ("SIM_SPEED", 45.0, P.REAL32, "range", 2),  # MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE
+    ("SIM_SPEED", 0.1, P.REAL32, "range", 2),
+    ("SIM_SPEED", float("nan"), P.REAL32, "NaN", 2),
+    ("SIM_SPEED", float("inf"), P.REAL32, "finite", 2),
+    ("SIM_SPEED", -float("inf"), P.REAL32, "finite", 2),
+    ("SIM_SPEED", as_float("<i", 6), P.INT32, "type", 7),  # TYPE_MISMATCH
+    ("BATT_CAPACITY", 6000.5, P.REAL32, "whole", 2),  # declared a float: a cast
+    ("BATT_CAPACITY", -5.0, P.REAL32, "range", 2),
+    ("BATT_CAPACITY", as_float("<i", -5), P.INT32, "range", 2),
+    ("U8", as_float("<B", 201), P.UINT8, "range", 2),
+    ("I8", as_float("<b", -101), P.INT8, "range", 2),
+    ("U8", as_float("<i", 12), P.INT32, "type", 7),
+    ("MAV_SYS_ID", as_float("<i", 7), P.INT32, "read-only", 5),  # READ_ONLY
+    ("RO", as_float("<B", 7), P.UINT8, "read-only", 5),
 ])
-def test_set_refused_keeps_value(tmp_path, name, value, ptype, reason):
+def test_set_refused_keeps_value(tmp_path, name, value, ptype, reason, error):
     b = Rig(tmp_path, table=TABLE if name in NAMES else MIXED, links=2)
     before = b.params.get(name)
     got = b.set(name, value, ptype)
+    assert [m.get_type() for m in got] == ["PARAM_ERROR", "PARAM_VALUE"]
+    assert got[0].param_id == name and got[0].error == error
+    got = got[1:]
     assert len(got) == 1 and got[0].param_id == name
     assert b.params.get(name) == before
     if isinstance(before, float):
@@ -379,13 +384,13 @@ def test_name_padding_after_nul_is_ignored(tmp_path):
 def test_unprintable_unknown_name_is_reported_safely(tmp_path):
     b = Rig(tmp_path)
     got = b.ask(mav.MAVLink_param_request_read_message(1, 1, b"\xff\xfeBAD\x01NAME\x80\x90", -1))
-    assert got == []
+    assert [m.get_type() for m in got] == ["PARAM_ERROR"]  # the name as it came
     assert b.texts.texts == ["unknown param ??BAD?NAME??"]
 
 
 def test_set_unknown_and_foreign_targets(tmp_path):
     b = Rig(tmp_path)
-    assert b.set("NO_SUCH", 1.0, P.REAL32) == []
+    assert [m.error for m in b.set("NO_SUCH", 1.0, P.REAL32)] == [1]  # PARAM_ERROR DOES_NOT_EXIST
     assert "unknown" in b.texts.texts[0]
     assert b.set("SIM_SPEED", 8.0, P.REAL32, target=(2, 1)) == []
     assert b.set("SIM_SPEED", 8.0, P.REAL32, target=(1, 2)) == []
@@ -402,6 +407,8 @@ def test_set_refused_without_operator_control(tmp_path):
 
     b.ep.operator = NotYou()
     got = b.set("SIM_SPEED", 8.0, P.REAL32)
+    assert [m.error for m in got[:1]] == [3]  # PARAM_ERROR PERMISSION_DENIED
+    got = got[1:]
     assert [m.param_value for m in got] == [5.0]
     assert "control" in b.texts.texts[0]
     acks = [m for m in b.command(180, NAMES.index("SIM_SPEED"), 9.0) if m.get_type() == "COMMAND_ACK"]
@@ -425,12 +432,37 @@ def test_c_cast_encoding(tmp_path):
     # A C-cast ground station may tag every value REAL32: the value is still the number.
     assert b.set("U32", 3000000000.0, P.REAL32)[0].param_value == 3000000000.0
     assert b.params.get("U32") == 3000000000
-    assert b.set("I32", 6000.5, P.INT32)[0].param_value == 6000.0
+    assert b.set("I32", 6000.5, P.INT32)[1].param_value == 6000.0
     assert "whole" in b.texts.texts[0]
-    assert b.set("I8", -101.0, P.INT8)[0].param_value == -3.0
+    assert b.set("I8", -101.0, P.INT8)[1].param_value == -3.0
     assert "range" in b.texts.texts[0]
     assert b.set("I8", -100.0, P.REAL32)[0].param_value == -100.0
     assert b.params.get("I8") == -100
+
+
+def test_bytewise_encoding_takes_real32_typed_integers_as_casts(tmp_path):
+    b = Rig(tmp_path, table=MIXED)
+    got = b.set("I32", 6000.0, P.REAL32)
+    assert [m.get_type() for m in got] == ["PARAM_VALUE"] and b.params.get("I32") == 6000
+    assert got[0].get_msgbuf()[10:14] == struct.pack("<i", 6000)  # bytewise stays bytewise
+    assert b.set("U32", 3000000000.0, P.REAL32)[0].get_msgbuf()[10:14] == struct.pack("<I", 3000000000)
+    assert [m.error for m in b.set("I8", 1.5, P.REAL32)[:1]] == [2]
+    assert b.params.get("I8") == -3
+
+
+def test_auto_encoding_per_link(tmp_path):
+    b = Rig(tmp_path, table=MIXED, encoding="auto", links=2)
+    assert b.ep.capabilities & (1 << 4) and not b.ep.capabilities & (1 << 17)  # told: bytewise
+    got = b.set("I32", 6000.0, P.REAL32)  # link 0 declared a float for an integer: C-cast
+    assert got[0].param_value == 6000.0
+    b.poll(5)
+    other = [m for m in b.values(1) if m.param_id == "I32"]
+    assert other and other[-1].get_msgbuf()[10:14] == struct.pack("<i", 6000)
+    b.send(mav.MAVLink_request_data_stream_message(1, 1, 0, 4, 1), 1)  # ArduPilot's way: C-cast
+    assert b.ask(mav.MAVLink_param_request_read_message(1, 1, b"I32", -1), 1)[0].param_value == 6000.0
+    b.command(512, 148.0)  # asks for AUTOPILOT_VERSION on link 0: told bytewise
+    got = b.ask(mav.MAVLink_param_request_read_message(1, 1, b"I32", -1))
+    assert got[-1].get_msgbuf()[10:14] == struct.pack("<i", 6000)
 
 
 def test_bytewise_capability(tmp_path):
@@ -734,7 +766,7 @@ def test_firmware_update_keeps_remaining_values(tmp_path):
 _STEADY = "values=%d reads=4 sets=4 commands=2 big=5 refused=461 own=0 " % (N + 1)
 
 
-@pytest.mark.parametrize("args", [("bytewise", 2, 5760), ("c_cast", 1, 5760), ("bytewise", 1, 200000)])
+@pytest.mark.parametrize("args", [("bytewise", 2, 5760), ("c_cast", 1, 5760), ("bytewise", 1, 200000), ("auto", 2, 5760)])
 @pytest.mark.parametrize("portable", [False, True])
 def test_steady_state_under_heap_lock(args, portable, monkeypatch):
     """A paced list, reads by index and name, accepted PARAM_SETs and DO_SET_PARAMETERs,

@@ -383,7 +383,7 @@ def own_paths(o):
     p.persist(0)
     p.accept(o.uid, o.f_uid, 0, True)
     p.accept(o.seed, o.f_seed, 0, True)
-    p._fill(o.txbuf, 0, o.uid)
+    p._fill(o.txbuf, 0, o.uid, p.c_cast)
 
 
 def measure(requests, fn, arg):

@@ -283,11 +283,13 @@ class Params(ParamTable):
             i = self._by_name(p, 4)
             if i < 0:
                 self._unknown(p, 4)
-                self._deny(link, p, 4, -1, _ERR_DOES_NOT_EXIST)
+                self._error = _ERR_DOES_NOT_EXIST
+                self._deny(link, p, 4, -1)
                 return
         elif i >= self.count:
             self.ep.statustext(_SEVERITY_WARNING, b"param index unknown")
-            self._deny(link, p, 4, i, _ERR_DOES_NOT_EXIST)
+            self._error = _ERR_DOES_NOT_EXIST
+            self._deny(link, p, 4, i)
             return
         self._reply(link, i)
 
@@ -297,20 +299,36 @@ class Params(ParamTable):
         i = self._by_name(p, 6)
         if i < 0:
             self._unknown(p, 6)
-            self._deny(link, p, 6, -1, _ERR_DOES_NOT_EXIST)
+            self._error = _ERR_DOES_NOT_EXIST
+            self._deny(link, p, 6, -1)
             return
-        why = self._may_set(link, i, p)
-        if why is None:
-            why = self.accept(i, p, 0, self._cast_in(link, i, p))
-            self._error = _ERR_OUT_OF_RANGE  # (NaN, a fraction: no value it may take)
+        why = self._try_set(link, i, p)
         if why is not None:
-            self._deny(link, p, 6, i, self._error)  # first: MAVSDK takes it as the answer
+            self._refuse(link, p, i, why)
+            return
         self._reply(link, i)
-        if why is not None:
-            self._refused(i, why)
-            return
         self._announce(i, link)
         self._changed_by_gcs(i)
+
+    # (Small functions: past about 11 words of locals and stack MicroPython takes a
+    # frame from the heap.)
+    def _try_set(self, link, i, p):
+        """Take PARAM_SET p into parameter i -> None, else why not (self._error: the
+        MAV_PARAM_ERROR)."""
+        why = self._may_set(link, i, p)
+        if why is None:
+            why = self._accept_set(link, i, p)
+        return why
+
+    def _accept_set(self, link, i, p):
+        self._error = _ERR_OUT_OF_RANGE  # if refused: NaN, a fraction, out of range
+        c = self._cast_in(link, i, p)
+        return self.accept(i, p, 0, c)
+
+    def _refuse(self, link, p, i, why):
+        self._deny(link, p, 6, i)  # first: MAVSDK takes it as the answer
+        self._reply(link, i)  # then the value in force, for everyone else
+        self._refused(i, why)
 
     def _by_name(self, p, o):
         return self.find(p, o, cstr_len(p, o, ID_LEN))
@@ -377,14 +395,13 @@ class Params(ParamTable):
                 self._link_state(link)
                 self._casts[link.index] = _TOLD
 
-    def _deny(self, link, p, o, i, error):
-        """PARAM_ERROR to the asker on link (where the dialect has it): the name as sent
-        at p[o:], index i (-1: asked by name). Made in place, in frames small enough for
-        the C stack: a refusal costs no heap."""
+    def _deny(self, link, p, o, i):
+        """PARAM_ERROR self._error to the asker on link (where the dialect has it): the
+        name as sent at p[o:], index i (-1: asked by name). Made in place, in frames
+        small enough for the C stack: a refusal costs no heap."""
         if self._errors:
-            self._error = error
-            self._error_head(link, i)
-            _name_into(link.txbuf, link.begin() + 4, p, o)
+            d = self._error_head(link, i)
+            _name_into(link.txbuf, d, p, o)
             link.send(_MSG_PARAM_ERROR)
 
     def _error_head(self, link, i):
@@ -395,6 +412,7 @@ class Params(ParamTable):
         buf[d + 2] = link.rx.sysid
         buf[d + 3] = link.rx.compid
         buf[d + 20] = self._error
+        return d + 4
 
     def _do_set_parameter(self, cmd):
         """MAV_CMD_DO_SET_PARAMETER: param1 the parameter's index, param2 its value."""
