@@ -13,7 +13,11 @@ A board (or application) declares its parameters once, as a tuple of rows:
 Any 8/16/32-bit integer type and REAL32. param_value is a 4-byte field, so UINT64,
 INT64 and REAL64 cannot travel and are refused at start-up. Integers travel bytewise
 (MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE, what QGroundControl and MAVSDK expect
-from a generic autopilot) or, with PARAM_ENCODING = "c_cast", converted to floats.
+from a generic autopilot), with PARAM_ENCODING = "c_cast" converted to floats (what
+MAVProxy and Mission Planner expect), or with "auto" each link as its ground station
+assumes (see _heard_heartbeat). A PARAM_SET typed REAL32 for an integer parameter is
+a float holding the value in any encoding; refusals also get PARAM_ERROR where the
+dialect has it (MAVSDK's answer to a set or get that failed).
 
 A list goes out at the link budget's RANK_FILL (link.py): whatever HEARTBEAT, the
 answers to ground stations and the telemetry streams leave of the link, so they keep
@@ -25,8 +29,8 @@ for the answer then, it is owed ahead of the list and sent as soon as it can.
 Lists, reads and their pacing allocate nothing. PARAM_SET is checked (type,
 range, NaN, read-only, operator control) and always answered with the value in force;
 a refusal also gets a STATUSTEXT saying why, a change is sent on every link.
-Values persist in storage file "params": MAV_CMD_PREFLIGHT_STORAGE (param1 1 save,
-0 reload, 2/4 defaults) or PARAM_AUTOSAVE_MS after the last change.
+Values persist in storage file "params" (param_store.py): MAV_CMD_PREFLIGHT_STORAGE
+(param1 1 save, 0 reload, 2/4 defaults) or PARAM_AUTOSAVE_MS after the last change.
 
 Lists, reads, accepted sets, saves and reloads allocate nothing, on 32-bit boards too
 (no value of 2**30 or more is ever a Python int: see param_table.py); the file is
@@ -43,6 +47,7 @@ from ..fields import i16, cstr_len
 from ..kernels import zero
 from ..link import RANK_BULK, RANK_FILL, RANK_AUTO
 from .param_table import ParamTable, ID_LEN
+from .param_store import ParamStore, Guard, FILE
 from .param_table import _copy4, _move, _put16  # byte moves whose frames fit the C stack
 from .param_table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32, READ_ONLY, REBOOT  # noqa: F401
 from .param_table import UINT64, INT64, REAL64  # noqa: F401  (declaring one is an error)
@@ -76,10 +81,8 @@ _RESULT_DENIED = const(2)
 _RESULT_UNSUPPORTED = const(3)
 _RESULT_FAILED = const(4)
 
-_SEVERITY_ERROR = const(3)
 _SEVERITY_WARNING = const(4)
 _SEVERITY_NOTICE = const(5)
-_SEVERITY_INFO = const(6)
 
 _CAP_PARAM_ENCODE_BYTEWISE = const(16)
 _CAP_PARAM_ENCODE_C_CAST = const(131072)
@@ -97,13 +100,12 @@ _VALUE_FRAME = const(37)  # bytes of a MAVLink 2 PARAM_VALUE (unsigned), asked o
 _OWED_LIST = const(1)  # _want: in a list, or a change to announce
 _OWED_ANSWER = const(2)  # _want: an answer the budget held back: goes first
 
-_FILE = "params"
 _AFTER_REBOOT = b" applies after reboot"
 _UNKNOWN = b"unknown param "
 _TEXT_LEN = const(50)  # STATUSTEXT's text field
 
 
-class Params(ParamTable):
+class Params(ParamStore, ParamTable):
     NAME = "params"
 
     def __init__(self, table, encoding="bytewise", autosave_ms=0, sysid_param=None):
@@ -111,7 +113,7 @@ class Params(ParamTable):
             raise ValueError("PARAM_ENCODING is 'bytewise', 'c_cast' or 'auto'")
         # "auto" keeps both forms of every value (the C-cast copy in self._wire) and
         # answers each link in the encoding its ground station assumes (_heard_*).
-        super().__init__(table, encoding != "bytewise")
+        ParamTable.__init__(self, table, encoding != "bytewise")
         self.auto = encoding == "auto"
         self.autosave_ms = autosave_ms
         self.sysid_param = sysid_param
@@ -129,7 +131,7 @@ class Params(ParamTable):
         self._error = 0  # the MAV_PARAM_ERROR of the refusal being answered
         self._text = bytearray(_TEXT_LEN)  # "NAME applies after reboot", made in place
         self._data = self._image  # what _load read the file into
-        self._guard = _Guard()
+        self._guard = Guard()
 
     def attach(self, ep):
         self.ep = ep
@@ -155,7 +157,7 @@ class Params(ParamTable):
             self._link_state(link)
         self._load(True)
         if getattr(ep, "storage", None) is not None:
-            ep.storage.reserve(_FILE, len(self._image))  # the first save allocates nothing
+            ep.storage.reserve(FILE, len(self._image))  # the first save allocates nothing
         if self.sysid_param:
             self.put(self.index(self.sysid_param), ep.sysid)
 
@@ -544,86 +546,6 @@ class Params(ParamTable):
             self._announce(i)
         return self.changed
 
-    # --- storage ---------------------------------------------------------------------
-    def save(self):
-        """Write every value to storage "params", atomically -> success."""
-        if getattr(self.ep, "storage", None) is None:
-            return False
-        with self._guard:
-            self._write()
-        e = self._guard.error
-        if e is not None:
-            self._say(_SEVERITY_ERROR, "params not saved: %s", e, b"params not saved")
-            return False
-        self.dirty = False
-        return True
-
-    def _write(self):
-        storage = self.ep.storage
-        # size: RAM storage gives a file its room when first made.
-        f = self._guard.file = storage.open_new(_FILE, size=len(self._image))
-        n = f.write(self.pack())
-        self._guard.file = None
-        f.close()  # before commit: a file system flushes it here
-        if n != len(self._image):
-            raise OSError(28)  # ENOSPC: the file's room is smaller (made by another firmware)
-        storage.commit(_FILE)
-
-    def _load(self, boot):
-        """Read storage "params" -> success. At boot an unusable file means defaults;
-        a reload keeps the values in force."""
-        storage = getattr(self.ep, "storage", None)
-        n = -1
-        if storage is not None:
-            if boot:
-                storage.discard_new(_FILE)  # a save cut short: the old file stands
-            n = self._read(storage)
-        bad = -1 if n < 0 else self.unpack(self._data, n)
-        if bad < 0:
-            self._not_loaded(boot, storage, n)
-            return False
-        if boot:
-            self.adopt(self._loaded)
-        else:
-            self._take(self._loaded, True)
-        self.dirty = False
-        if bad:
-            self._say(_SEVERITY_NOTICE, "params: %d stored values invalid, defaults used", bad,
-                      b"params: stored values invalid, defaults used")
-        return True
-
-    def _read(self, storage):
-        """The stored file into self._data -> its length, -1 if there is none."""
-        with self._guard:
-            return self._read_file(storage)
-        return -1  # an OSError: no file, or one that cannot be read
-
-    def _read_file(self, storage):
-        f = self._guard.file = storage.open(_FILE, "rb")
-        n = f.readinto(self._room(f))
-        self._guard.file = None
-        f.close()
-        return n
-
-    def _room(self, f):
-        """A buffer for file f: the file image's, unless f is bigger (a file another
-        firmware wrote: a rare buffer of its own)."""
-        n = f.seek(0, 2)
-        f.seek(0, 0)
-        self._data = self._image if n <= len(self._image) else bytearray(n)
-        return self._data
-
-    def _not_loaded(self, boot, storage, n):
-        if storage is None:
-            why = "no storage"
-        else:
-            why = "none stored" if n < 0 else "stored file corrupt"
-        if boot:
-            sev = _SEVERITY_INFO if n < 0 else _SEVERITY_WARNING
-            self.ep.statustext(sev, "params: %s, using defaults" % why)
-        else:
-            self._say(_SEVERITY_WARNING, "params not reloaded: %s", why, b"params not reloaded")
-
 
 def _shown(dst, d, p, o):
     """The NUL-padded name at p[o] into dst from d, '?' for what cannot be shown -> the
@@ -651,32 +573,6 @@ def _type_why(got, want):
         return "type %d, expected %d" % (got, want)
     except MemoryError:  # the heap is locked
         return "wrong type"
-
-
-class _Guard:
-    """`with guard:` around work on a storage file: an OSError raised in the block ends
-    there, kept in guard.error, and guard.file, if the block left one open, is closed.
-
-    It is what try/except OSError as e and try/finally would do, but with frames that
-    fit on the C stack (MicroPython takes bigger ones from the heap, on every save), and
-    without the file's own __exit__ (RamFile's takes *exc: a tuple on every call).
-    """
-
-    def __init__(self):
-        self.error = None
-        self.file = None
-
-    def __enter__(self):
-        self.error = None
-        return self
-
-    def __exit__(self, kind, e, tb):
-        f = self.file
-        if f is not None:
-            self.file = None
-            f.close()
-        self.error = e
-        return isinstance(e, OSError)
 
 
 def create(ep):
