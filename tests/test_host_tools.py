@@ -241,7 +241,8 @@ def test_params(gcs_link, tmp_path):
     assert ok(mavctl(link, "params", "set", "SIM_GPS_SATS", "0x10")).split() == ["SIM_GPS_SATS", "16"]
 
     r = mavctl(link, "params", "set", "SIM_SPEED", "99")  # beyond the parameter's maximum
-    assert r.returncode == 1 and "SIM_SPEED stays 7.25" in r.stderr
+    assert r.returncode == 1 and "SIM_SPEED: MAV_PARAM_ERROR_VALUE_OUT_OF_RANGE" in r.stderr  # the vehicle's PARAM_ERROR
+    assert ok(mavctl(link, "params", "get", "SIM_SPEED")).split() == ["SIM_SPEED", "7.25"]
     r = mavctl(link, "params", "set", "MAV_SYS_ID", "7")  # read-only
     assert r.returncode == 1
     r = mavctl(link, "params", "set", "SIM_GPS_SATS", str(1 << 40))  # beyond any integer type
