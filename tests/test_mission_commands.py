@@ -317,7 +317,8 @@ def test_simulator_carries_out_roi_camera_gimbal_and_speed(tmp_path):
         if runner.state == COMPLETE:
             break
     assert runner.state == COMPLETE, (runner.current, runner.state)
-    assert len(headings) > 5 and all(80 < h < 100 for h in headings[3:]), str([round(h) for h in headings])  # the nose on the ROI
+    # The nose on the ROI, east, all the way north.
+    assert len(headings) > 5 and all(80 < h < 100 for h in headings[3:]), str([round(h) for h in headings])
     assert sim.roi is None and sim.video and sim.gimbal == (-90.0, 30.0)
     assert 10 <= sim.photos <= 12, sim.photos  # one, then one per 10 m of the 100 m leg
     assert sim._pilot.speed == 3.0
