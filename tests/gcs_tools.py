@@ -3,6 +3,7 @@ import contextlib
 import os
 import queue
 import re
+import socket
 import subprocess
 import threading
 import time
@@ -10,6 +11,29 @@ import time
 from conftest import PYTHON, ROOT, free_udp_port, recv
 
 MAVPROXY = os.path.join(ROOT, ".venv", "bin", "mavproxy.py")
+
+
+class UdpSender:
+    """A thread sending datagrams to the vehicle's udpin port from an address of its own,
+    until the `with` block ends: a subclass's _run() sends from self._sock while
+    self._stop is not set, counting in self.sent."""
+
+    def __init__(self, port):
+        self.port = port
+        self.sent = 0
+        self._stop = threading.Event()
+        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self._sock.bind(("127.0.0.1", 0))
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def __enter__(self):
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join()
+        self._sock.close()
 
 MAV_RESULT_ACCEPTED = 0
 MAV_RESULT_TEMPORARILY_REJECTED = 1

@@ -4,32 +4,27 @@ unix vehicle, budgeted as a 57600 baud radio, sends no more than the radio carri
 HEARTBEAT keeps its 1 Hz, and another ground station's parameter reads and commands
 are still answered. Real UDP sockets, pymavlink on both sides of the flood."""
 import os
-import socket
-import threading
 import time
 
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink.dialects.v20 import common as mav  # noqa: E402
 
+from gcs_tools import UdpSender  # noqa: E402
+
 BYTES_PER_S = 5760
 FLOOD_SYSIDS = (100, 101, 102, 103, 104)
 
 
-class Flood:
+class Flood(UdpSender):
     """From one address, round robin over several system ids: PARAM_REQUEST_LIST,
     MISSION_REQUEST_LIST, REQUEST_DATA_STREAM (all streams at 50 Hz) and PING, about
     `per_s` frames a second, until stopped."""
 
     def __init__(self, port, per_s=2000):
-        self.port = port
+        UdpSender.__init__(self, port)
         self.per_s = per_s
-        self.sent = 0
-        self._stop = threading.Event()
-        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self._sock.bind(("127.0.0.1", 0))
         self._sock.setblocking(False)
         self._mavs = [mav.MAVLink(None, s, 190) for s in FLOOD_SYSIDS]
-        self._thread = threading.Thread(target=self._run, daemon=True)
 
     def _frame(self, k):
         m = self._mavs[k % len(self._mavs)]
@@ -60,15 +55,6 @@ class Flood:
                     pass
             except OSError:
                 pass
-
-    def __enter__(self):
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        self._stop.set()
-        self._thread.join()
-        self._sock.close()
 
 
 class Watch:

@@ -7,6 +7,7 @@ constant; mem_total() still while nobody talks to the vehicle, and under the loa
 moving no more than the rare operations explain. Rare events the soak keeps out of
 its figures (a udpin link's new ground station, a parameter save) are tested
 heap-locked on their own below."""
+import contextlib
 import os
 import time
 
@@ -93,37 +94,36 @@ def test_udpin_link_takes_a_ground_station_heap_locked(vehicle):
     v.check_alive()
 
 
-def test_request_all_streams_heap_locked(vehicle):
-    port = soak_rig.free_udp_port()
+@contextlib.contextmanager
+def locked_udpout(vehicle, *args):
+    """A heap-locked unix vehicle without its application, sending to a pymavlink ground
+    station -> (vehicle, connection), its first HEARTBEAT heard."""
     from pymavlink import mavutil
 
+    port = soak_rig.free_udp_port()
     m = mavutil.mavlink_connection("udpin:127.0.0.1:%d" % port, source_system=255, source_component=190,
                                    dialect="common")
     try:
-        v = vehicle(links=["udpout:127.0.0.1:%d" % port], args=["--set", "heap_lock=1", "--set", "application=0"])
+        v = vehicle(links=["udpout:127.0.0.1:%d" % port],
+                    args=["--set", "heap_lock=1", "--set", "application=0", *args])
         assert recv(m, "HEARTBEAT", timeout=10) is not None
-        m.mav.request_data_stream_send(1, 1, 0, 10, 1)
-        time.sleep(1.5)
-        v.check_alive()
-        assert recv(m, "HEARTBEAT", timeout=3) is not None
+        yield v, m
     finally:
         m.close()
 
 
-def test_param_save_heap_locked(vehicle):
-    port = soak_rig.free_udp_port()
-    from pymavlink import mavutil
+def test_request_all_streams_heap_locked(vehicle):
+    with locked_udpout(vehicle) as (v, m):
+        m.mav.request_data_stream_send(1, 1, 0, 10, 1)
+        time.sleep(1.5)
+        v.check_alive()
+        assert recv(m, "HEARTBEAT", timeout=3) is not None
 
-    m = mavutil.mavlink_connection("udpin:127.0.0.1:%d" % port, source_system=255, source_component=190,
-                                   dialect="common")
-    try:
-        v = vehicle(links=["udpout:127.0.0.1:%d" % port], args=["--set", "heap_lock=1", "--set", "application=0",
-                                                                 "--set", "param_autosave_ms=500"])
-        assert recv(m, "HEARTBEAT", timeout=10) is not None
+
+def test_param_save_heap_locked(vehicle):
+    with locked_udpout(vehicle, "--set", "param_autosave_ms=500") as (v, m):
         m.mav.param_set_send(1, 1, b"SIM_SPEED", 7.5, 9)
         assert recv(m, "PARAM_VALUE", timeout=3, cond=lambda p: p.param_id == "SIM_SPEED") is not None
         time.sleep(1.5)  # the autosave falls due
         v.check_alive()
         assert recv(m, "HEARTBEAT", timeout=3) is not None
-    finally:
-        m.close()

@@ -4,40 +4,23 @@ second real ground station from another address is served beside the first. The 
 vehicle on MicroPython with pymavlink ground stations, and the transport itself on
 CPython, all over real UDP sockets."""
 import socket
-import threading
 import time
 
 from conftest import free_udp_port, recv
+from gcs_tools import UdpSender
 
 
-class Junk:
+class Junk(UdpSender):
     """Non-MAVLink datagrams from an address of its own, every 50 ms, until stopped: a
     single byte, a lone MAVLink 2 start marker, and a header that promises a long frame."""
 
     KINDS = (b"\x00", b"\xfd", b"\xfd\xff\x00\x00\x00\x07\x07\x00\x00\x00", bytes(range(40)))
-
-    def __init__(self, port):
-        self.port = port
-        self.sent = 0
-        self._stop = threading.Event()
-        self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self._sock.bind(("127.0.0.1", 0))
-        self._thread = threading.Thread(target=self._run, daemon=True)
 
     def _run(self):
         while not self._stop.is_set():
             self._sock.sendto(self.KINDS[self.sent % len(self.KINDS)], ("127.0.0.1", self.port))
             self.sent += 1
             self._stop.wait(0.05)
-
-    def __enter__(self):
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        self._stop.set()
-        self._thread.join()
-        self._sock.close()
 
 
 def heartbeats(m, seconds):
