@@ -51,7 +51,9 @@ def load_board(name):
 
 def build(board, opts):
     """Endpoint, links, storage and services as the board profile composes them."""
-    dialect = __import__("mavstack.dialects." + board.DIALECT, None, None, ("CRC_LEN",))
+    # --set dialect=seed2012 runs the board with the seed's message set instead of its own.
+    name = opts.get("options", {}).get("dialect") or board.DIALECT
+    dialect = __import__("mavstack.dialects." + name, None, None, ("CRC_LEN",))
     sysid = opts.get("sysid") or getattr(board, "SYSID", 1)
     ep = Endpoint(dialect, sysid, getattr(board, "COMPID", 1))
     ep.board = board
