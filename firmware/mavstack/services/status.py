@@ -552,8 +552,8 @@ class Status:
 
     def send_home_position(self, link):
         # _HOME_POSITION_FMT: lat, lon, alt; x, y, z 0; q = (1, 0, 0, 0); the rest 0.
-        if not self.home_set:
-            return False
+        if not self.home_set or _MSG_HOME_POSITION not in link.tx.crc_len:
+            return False  # (the seed's message set has no HOME_POSITION)
         off = link.tx.clear(link.tx.crc_len[_MSG_HOME_POSITION] >> 16)
         buf = link.txbuf
         pack_into("<iii", buf, off, self.home_lat, self.home_lon, self.home_alt)
