@@ -17,14 +17,26 @@ FENCE_CAPACITY = 100
 RALLY_CAPACITY = 20
 OPERATOR_PASSKEY = None  # a string makes CHANGE_OPERATOR_CONTROL required to take control
 GCS_TIMEOUT_MS = 5000
-# Modes (mavstack/services/status.py): custom modes the simulator flies, each with the
-# MAV_MODE_FLAG bits it sets, numbered as ground stations name them for a multicopter
-# (MAVProxy's `mode AUTO`, `mode LOITER`). Any other custom mode is refused.
-CUSTOM_MODES = (
-    (3, "AUTO", 16 | 4),  # STABILIZE | AUTO: flies the mission while armed
-    (5, "LOITER", 16),  # STABILIZE: holds where it is
+# Modes (mavstack/services/modes.py): what the simulator flies, one row a mode:
+# (number, name, MAV_MODE_FLAG bits, PX4 main mode, PX4 sub mode, MAV_STANDARD_MODE).
+# Ground stations that assume ArduPilot (MAVProxy's `mode GUIDED`) read and set the
+# number, ArduCopter's; MAVSDK reads and sets PX4's main/sub mode; modern ones may use
+# the standard mode (MAV_CMD_DO_SET_STANDARD_MODE). ArduCopter takes off and follows
+# setpoints in GUIDED, so TAKEOFF and OFFBOARD show as GUIDED (4) to the former.
+FLIGHT_MODES = (
+    (0, "STABILIZE", 64 | 16, 7, 0, 0),  # manual: MANUAL_CONTROL / RC sticks fly it (PX4: Stabilized; Manual is taken for it)
+    (2, "ALT_HOLD", 64 | 16, 2, 0, 4),  # manual, altitude held (PX4: Altitude; standard ALTITUDE_HOLD)
+    (16, "POSITION", 64 | 16, 3, 0, 1),  # manual, position held (ArduCopter POSHOLD; PX4 Position; POSITION_HOLD)
+    (3, "AUTO", 16 | 4, 4, 4, 6),  # flies the mission (PX4 Mission; standard MISSION)
+    (4, "GUIDED", 16 | 8, 4, 3, 0),  # goes to a commanded point and holds (PX4 shows it as Hold)
+    (5, "LOITER", 16 | 4, 4, 3, 0),  # holds where it is (PX4 Hold)
+    (6, "RTL", 16 | 4, 4, 5, 5),  # home at the return altitude, lands (standard SAFE_RECOVERY)
+    (9, "LAND", 16 | 4, 4, 6, 7),  # lands here, disarms (standard LAND)
+    (4, "TAKEOFF", 16 | 8 | 4, 4, 2, 8),  # climbs to the takeoff altitude, then LOITER (standard TAKEOFF)
+    (4, "OFFBOARD", 16 | 8, 6, 0, 0),  # follows an offboard computer's setpoints
 )
-RAM_BUDGET = 256 * 1024  # heap the vehicle may hold after start-up (main.py reports it)
+MODE_NUMBERING = "auto"  # per link, as its ground station reads modes (modes.py), or "ardupilot" / "px4"
+RAM_BUDGET = 384 * 1024  # heap the vehicle may hold after start-up (main.py reports it): every service and the simulator, 64-bit pointers
 
 
 def transports():

@@ -6,27 +6,35 @@ It also holds the vehicle state other services and the application share:
 
     status = ep.services["status"]
     status.armed, status.base_mode, status.custom_mode, status.system_status, status.auto
+    status.flight_mode   the current mode's name in the board's FLIGHT_MODES ("GUIDED"; None
+                         on a board without a table)
     status.arm(True, force=False) -> MAV_RESULT   (status.reason says why it was refused)
-    status.set_mode(base_mode, custom_mode) -> MAV_RESULT
+    status.set_mode(base_mode, custom_mode) -> MAV_RESULT   a ground station's request
+    status.set_flight_mode("RTL") -> MAV_RESULT   the application's own change (no veto)
+    status.set_airborne(True | False)   HEARTBEAT system_status: ACTIVE in the air, STANDBY
+                         on the ground; until first called, ACTIVE while armed
     status.set_state(MAV_STATE_CRITICAL) / set_state(0)  (back to the life cycle)
     status.set_home(lat_e7, lon_e7, alt_mm), status.home_set, status.home
     status.set_sensors(present, enabled, health), status.set_battery(mv, ca, percent)
     status.fence_enabled, status.fence_breached   set by an application that checks a fence
-    status.custom_modes   ((custom_mode, "NAME", MAV_MODE_FLAG bits), ...): the board's CUSTOM_MODES
+    status.custom_modes   the board's FLIGHT_MODES (modes.py: the rows, numbering per link)
     status.set_clock(unix_usec), status.statustext(severity, text), status.gcs_present(link)
     status.reboot(1) (2: shutdown, if the board has shutdown()): Reboot is raised out of
     a poll reboot_delay_ms later, once the ACK and a STATUSTEXT are on the wire
 Hooks the application may set (None: no opinion):
     arm_check(arm) -> None | reason | (MAV_RESULT, reason)   veto arming or disarming
     mode_check(base_mode, custom_mode) -> same                 veto a mode
+    flight_mode_check(name) -> same                            veto a mode by its name
     position() -> (lat_e7, lon_e7, alt_mm) or None              for DO_SET_HOME "current"
     on_gcs_lost(link), on_gcs_regained(link)                   fail-safe triggers
+    on_hil(enabled)          HIL_ENABLED turned on or off (status.hil): actuators blocked
 A command forced with 21196 (COMPONENT_ARM_DISARM param2) skips arm_check.
 
-Modes: MAV_MODE_FLAG bits of mode_flags_supported (the board's MODE_FLAGS), and the
-custom modes of the board's CUSTOM_MODES table; a custom mode sets its own flags (the
-sender's other flags give way to them), custom_mode 0 is "none". Anything else is
-refused (DENIED, with a STATUSTEXT) and the mode stays as it was.
+Modes: a board with a mode table (FLIGHT_MODES; services/modes.py says how requests
+find a row and how each link numbers it) is always in one of its modes, the row numbered
+0 from boot; a mode sets its own MAV_MODE_FLAG bits. A board without one takes
+MAV_MODE_FLAG bits of mode_flags_supported (the board's MODE_FLAGS) with custom_mode 0.
+Anything else is refused (DENIED, with a STATUSTEXT) and the mode stays as it was.
 
 SYS_STATUS: the application's sensor bits (set_sensors), and two the status service
 fills itself. MAV_SYS_STATUS_PREARM_CHECK is always present and enabled, healthy when
@@ -54,6 +62,7 @@ from ..link import RANK_VITAL, RANK_OTHER, RANK_AUTO
 from .statustext import TextQueue, CRITICAL, NOTICE, WARNING
 from .operator import Operator, on_change_operator_control
 from . import vehicle_commands
+from .modes import Modes
 
 
 # MAV_STATE
@@ -90,6 +99,7 @@ _MSG_CHANGE_OPERATOR_CONTROL = const(5)
 _MSG_SET_MODE = const(11)
 _MSG_AUTOPILOT_VERSION = const(148)
 _MSG_HOME_POSITION = const(242)
+_MSG_CURRENT_MODE = const(436)
 _MAV_TYPE_GCS = const(6)
 _CAP_MAVLINK2 = const(8192)
 _MAVLINK_VERSION = const(3)
@@ -125,7 +135,15 @@ class Status:
         self.custom_mode = 0
         self.system_status = MAV_STATE_BOOT
         self.mode_flags_supported = MODE_MANUAL_INPUT | MODE_STABILIZE | MODE_GUIDED | MODE_AUTO | MODE_CUSTOM
-        self.custom_modes = ()  # ((custom_mode, name, MAV_MODE_FLAG bits), ...)
+        self.modes = Modes(())
+        self.mode_row = -1  # the current mode's row in the table, -1: none (flag-only modes)
+        self.intended_row = -1  # the last one a ground station asked for
+        self.flight_mode = None
+        self.flight_mode_check = None
+        self._mode_changed = False
+        self._airborne = -1  # set_airborne: 1 in the air, 0 on the ground, -1 not told
+        self.hil = False  # MAV_MODE_FLAG_HIL_ENABLED, on a board whose MODE_FLAGS allow it
+        self.on_hil = None
         self._override = 0  # a MAV_STATE the application set, 0: follow the life cycle
         self._initialised = False
         self.reason = None
@@ -186,6 +204,7 @@ class Status:
         self._sw_version = _version_word(VERSION, _FIRMWARE_VERSION_TYPE_DEV)
         self._os_version = _os_version()
         ep.on(_MSG_HEARTBEAT, self._on_heartbeat)
+        self.modes.attach(ep, self)
         ep.on(_MSG_PING, self._on_ping)
         ep.on(_MSG_SYSTEM_TIME, self._on_system_time)
         ep.on(_MSG_SET_MODE, self._on_set_mode)
@@ -208,6 +227,7 @@ class Status:
     def _links_changed(self):
         # Rare (start-up): size the per-link tables and the STATUSTEXT pacing.
         links = self.ep.links
+        self.modes.links_changed(links)
         while len(self._gcs_seen) < len(links):
             self._gcs_seen.append(0)
             self._gcs_state = self._gcs_state + b"\0"
@@ -219,6 +239,14 @@ class Status:
 
     # --- state ----------------------------------------------------------------
     @property
+    def custom_modes(self):
+        return self.modes.table
+
+    @custom_modes.setter
+    def custom_modes(self, table):
+        self.modes.set_table(table)
+
+    @property
     def auto(self):
         return bool(self.mode & MODE_AUTO)
 
@@ -227,13 +255,20 @@ class Status:
         return (self.home_lat, self.home_lon, self.home_alt) if self.home_set else None
 
     def _update(self):
-        self.base_mode = self.mode | (MODE_ARMED if self.armed else 0)
+        self.base_mode = self.mode | (MODE_ARMED if self.armed else 0) | (MODE_HIL if self.hil else 0)
         if self._override:
             self.system_status = self._override
         elif not self._initialised:
             self.system_status = MAV_STATE_BOOT
+        elif self._airborne >= 0:
+            self.system_status = MAV_STATE_ACTIVE if self._airborne else MAV_STATE_STANDBY
         else:
             self.system_status = MAV_STATE_ACTIVE if self.armed else MAV_STATE_STANDBY
+
+    def set_airborne(self, airborne):
+        """In the air (True) or on the ground: HEARTBEAT's ACTIVE or STANDBY from now on."""
+        self._airborne = 1 if airborne else 0
+        self._update()
 
     def set_state(self, state):
         """Report a MAV_STATE (e.g. CRITICAL, EMERGENCY) until set_state(0)."""
@@ -255,25 +290,98 @@ class Status:
         return _ACCEPTED
 
     def set_mode(self, base_mode, custom_mode=0):
-        """Change the mode flags (SAFETY_ARMED is ignored: arming is its own command)."""
+        """A ground station's mode request (SAFETY_ARMED is ignored: arming is its own
+        command) -> MAV_RESULT. HIL_ENABLED, where the board's MODE_FLAGS allow it,
+        goes with any mode: the request's bit turns it on or off."""
         self.reason = None
-        flags = _flags_of(self.custom_modes, base_mode & 0x7F, custom_mode)
-        if flags < 0:
-            self.reason = "no such custom mode"  # a constant: a board may lock its heap
-            self.statustext(WARNING, b"Mode: no such custom mode")
+        if base_mode & MODE_HIL and not self.mode_flags_supported & MODE_HIL:
+            self.reason = "HIL not supported"
+            self.statustext(WARNING, b"Mode: HIL not supported")
             return _DENIED
+        result = self._set_mode(base_mode & 0x5F, custom_mode)
+        if result == _ACCEPTED:
+            self._set_hil(base_mode & MODE_HIL)
+        return result
+
+    def _set_hil(self, on):
+        on = bool(on)
+        if on != self.hil:
+            self.hil = on
+            self._update()
+            if self.on_hil is not None:
+                self.on_hil(on)  # the application blocks (or frees) its actuators
+
+    def _set_mode(self, base_mode, custom_mode):
+        row = self.modes.find(base_mode, custom_mode)
+        if row >= 0:
+            return self.enter(row, True)
+        if row == -1 or custom_mode:
+            self.reason = "no such mode"  # a constant: a board may lock its heap
+            self.statustext(WARNING, b"Mode: no such mode")
+            return _DENIED
+        return self._flag_mode(base_mode & 0x5E)
+
+    def _flag_mode(self, flags):
+        # A board without a mode table: the flags alone.
         if flags & ~self.mode_flags_supported:
             self.reason = "mode flags 0x%02x not supported" % (flags & ~self.mode_flags_supported)
             self.statustext(WARNING, "Mode: " + self.reason)
             return _DENIED
         if self.mode_check is not None:
-            result = self._veto(self.mode_check(flags, custom_mode), b"Mode: ")
+            result = self._veto(self.mode_check(flags, 0), b"Mode: ")
             if result != _ACCEPTED:
                 return result
         self.mode = flags
-        self.custom_mode = custom_mode
+        self.custom_mode = 0
         self._update()
         return _ACCEPTED
+
+    def enter(self, row, asked):
+        """Into mode `row` of the table: asked (by a ground station) goes through the
+        vetoes, the application's own change (set_flight_mode) does not."""
+        if asked:
+            result = self._vet(row)
+            if result != _ACCEPTED:
+                return result
+            self.intended_row = row
+        self._apply(row)
+        return _ACCEPTED
+
+    # (Three small functions, not one: each frame stays within what MicroPython keeps
+    # off the heap.)
+    def _vet(self, row):
+        entry = self.modes.table[row]
+        flags = entry[2] & 0x7E | MODE_CUSTOM
+        if flags & ~self.mode_flags_supported:
+            self.reason = "mode flags not supported"
+            self.statustext(WARNING, b"Mode: flags not supported")
+            return _DENIED
+        if self.mode_check is not None:
+            answer = self.mode_check(flags, entry[0])
+            if answer is not None:
+                return self._veto(answer, b"Mode: ")
+        if self.flight_mode_check is not None:
+            answer = self.flight_mode_check(entry[1])
+            if answer is not None:
+                return self._veto(answer, b"Mode: ")
+        return _ACCEPTED
+
+    def _apply(self, row):
+        entry = self.modes.table[row]
+        if row != self.mode_row:
+            self._mode_changed = True
+        self.mode = entry[2] & 0x7E | MODE_CUSTOM
+        self.custom_mode = entry[0]
+        self.mode_row = row
+        self.flight_mode = entry[1]
+        self._update()
+
+    def set_flight_mode(self, name):
+        """The application changes mode (a failsafe, a takeoff done) -> MAV_RESULT."""
+        row = self.modes.by_name(name)
+        if row < 0:
+            return _DENIED
+        return self.enter(row, False)
 
     def _veto(self, answer, prefix):
         if answer is None:
@@ -351,7 +459,11 @@ class Status:
     def tick(self, now):
         if not self._initialised:
             self._initialised = True
+            self.modes.wrap_request_message()
             self._update()
+        if self._mode_changed:
+            self._mode_changed = False
+            self._mode_announce()
         if len(self._gcs_state) < len(self.ep.links):
             self._links_changed()
         if ticks_diff(now, self._next_period) >= 0:
@@ -373,6 +485,13 @@ class Status:
                 self.ep.board.shutdown()
                 raise SHUTDOWN
             raise REBOOT
+
+    def _mode_announce(self):
+        # CURRENT_MODE on a change, where the dialect has it (a rare event).
+        send = self.ep.producers.get(_MSG_CURRENT_MODE)
+        if send is not None:
+            for link in self.ep.links:
+                send(link)
 
     def _period(self, now):
         # Once a second: HEARTBEAT, and SYS_STATUS unless the streams service schedules it.
@@ -500,7 +619,9 @@ class Status:
         if not self.ep.allows(link):
             self.statustext(WARNING, b"Mode: GCS not in control")
             return
-        self.set_mode(p[5], u32(p, 0))
+        custom = u32(p, 0)
+        self.modes.heard_custom(link, custom)
+        self.set_mode(p[5], custom)
 
     def _on_operator_control(self, link, p):
         on_change_operator_control(self.ep, link, p, self.operator)
@@ -510,9 +631,10 @@ class Status:
     # whole message puts more values on the stack than a frame state MicroPython
     # keeps off the heap (about 11 words).
     def send_heartbeat(self, link):
+        custom = self.modes.custom(link)  # as this link's ground station numbers modes
         off = link.begin()
         buf = link.txbuf
-        pack_into("<I", buf, off, self.custom_mode)
+        pack_into("<I", buf, off, custom)
         buf[off + 4] = self.mav_type
         buf[off + 5] = self.autopilot
         buf[off + 6] = self.base_mode
@@ -561,20 +683,6 @@ class Status:
         return link.send(_MSG_HOME_POSITION)
 
 
-def _flags_of(table, flags, custom_mode):
-    # -> the MAV_MODE_FLAG bits a mode request comes to: a custom mode of the table sets
-    # its own (and CUSTOM_MODE_ENABLED); -1 for a custom mode the table does not have.
-    # By index: a for loop's iterator would put this frame on the heap.
-    if not custom_mode:
-        return flags
-    i = 0
-    while i < len(table):
-        if table[i][0] == custom_mode:
-            return table[i][2] & 0x7E | MODE_CUSTOM
-        i += 1
-    return -1
-
-
 def _merge(buf, o, bits):
     # The status service's bits (only _OWN_BIT of bytes 2 and 3) into a uint32 at o.
     buf[o + 2] = (buf[o + 2] & ~_OWN_BIT) | (bits >> 16 & _OWN_BIT)
@@ -614,5 +722,9 @@ def create(ep):
         reboot_delay_ms=ep.setting("REBOOT_DELAY_MS", 100),
     )
     status.mode_flags_supported = ep.setting("MODE_FLAGS", status.mode_flags_supported)
-    status.custom_modes = ep.setting("CUSTOM_MODES", ())
-    return ep.add(status)
+    status.modes = Modes(ep.setting("FLIGHT_MODES", None) or ep.setting("CUSTOM_MODES", ()),
+                         ep.setting("MODE_NUMBERING", "auto"))
+    ep.add(status)
+    if status.modes.table:
+        status.enter(max(status.modes.by_number(0), 0), False)  # boots in the mode numbered 0
+    return status

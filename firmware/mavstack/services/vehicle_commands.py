@@ -5,7 +5,9 @@ REQUEST_AUTOPILOT_CAPABILITIES (520), GET_HOME_POSITION (410), DO_SET_HOME (179)
 Installed into endpoint.commands by status.attach; the commands service sends the
 ACKs. Commands that change the vehicle need operator control when a passkey is set.
 DO_SET_MODE to a mode the vehicle does not have (a flag it does not support, a custom
-mode not in the board's CUSTOM_MODES) is DENIED by status.set_mode, which says why.
+mode not in the board's FLIGHT_MODES) is DENIED by status.set_mode, which says why; on a
+link in PX4's mode convention (services/modes.py) param2 and param3 are PX4's main and sub
+mode. MAV_CMD_DO_SET_STANDARD_MODE is the modes module's.
 """
 from ..compat import const
 from .statustext import CRITICAL, WARNING
@@ -69,6 +71,12 @@ class VehicleCommands:
             custom = cmd.int(2)
         if base < 0 or base > 255 or custom < 0:
             return _DENIED
+        if custom and base & 1 and self.status.modes.px4_link(cmd.link):
+            # PX4's convention (MAVSDK): param2 main mode, param3 sub mode.
+            sub = cmd.int(3) if cmd.finite(3) else 0
+            if custom > 255 or sub < 0 or sub > 63:
+                return _DENIED
+            custom = custom << 16 | sub << 24
         if not self._in_control(cmd, b"Mode: GCS not in control"):
             return _DENIED
         return self.status.set_mode(base, custom)
