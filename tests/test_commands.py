@@ -51,10 +51,10 @@ def test_modes_by_command_long_command_int_and_set_mode(vehicle):
     m.mav.command_int_send(1, 1, 0, 176, 0, 0, 8 | 16, 0, 0, 0, 0, 0, 0)  # GUIDED | STABILIZE
     assert ack(m, 176).result == MAV_RESULT_ACCEPTED
     hb = vehicle_heartbeat(m, lambda h: h.base_mode & 8)
-    assert hb.base_mode & 0x7F == 8 | 16 and hb.custom_mode == 0
+    assert hb.base_mode & 0x7F == 1 | 8 | 16 and hb.custom_mode == 4  # the mode with those flags: GUIDED
     m.mav.set_mode_send(1, 64 | 16, 0)  # the seed's SET_MODE: MANUAL_INPUT | STABILIZE
     hb = vehicle_heartbeat(m, lambda h: h.base_mode & 64)
-    assert hb.base_mode & 0x7F == 64 | 16
+    assert hb.base_mode & 0x7F == 1 | 64 | 16 and hb.custom_mode == 0  # STABILIZE
     m.mav.set_mode_send(1, 4 | 128, 0)  # the armed bit does not arm
     hb = vehicle_heartbeat(m, lambda h: h.base_mode & 4)
     assert not hb.base_mode & ARMED

@@ -1,27 +1,18 @@
-"""What ground stations read as the vehicle's health and how its modes answer: the unix
-vehicle over UDP, with pymavlink, MAVSDK and MAVProxy as the ground stations.
+"""What ground stations read as the vehicle's health: the unix vehicle over UDP, with
+pymavlink, MAVSDK and MAVProxy as the ground stations (its modes: tests/test_modes.py).
 
 SYS_STATUS's pre-arm bit follows the arming check (`--set arm_veto=1` makes it fail),
 its geofence bits the fence (the simulator checks none: not present, and healthy, which
-ground stations read as "no breach"). A mode the vehicle does not have is refused and
-leaves the mode as it was; one of the board's CUSTOM_MODES is taken and shows in
-HEARTBEAT.
+ground stations read as "no breach").
 """
 import time
 
-from conftest import recv
-from gcs_tools import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED, MavProxy, ack,
-                       listen, mavsdk_system, run, start, statustext, two_links, vehicle_heartbeat)
+from gcs_tools import MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MavProxy, listen, mavsdk_system, run, start, two_links
 
 PREARM_CHECK = 0x10000000  # MAV_SYS_STATUS_PREARM_CHECK
 GEOFENCE = 0x100000  # MAV_SYS_STATUS_GEOFENCE
 SIM_SENSORS = 1 | 2 | 4 | 8 | 32 | 1024 | 2048 | 4096 | 8192 | 16384 | 32768  # firmware/simulator.py
-MODE_CUSTOM = 1
-MODE_STABILIZE = 16
-MODE_AUTO = 4
-AUTO = 3  # boards/unix.py CUSTOM_MODES
-LOITER = 5
-UNKNOWN = 4  # what a multicopter ground station calls GUIDED; the unix vehicle has no such mode
+
 
 
 def _sys_status(m, timeout=5.0):
@@ -101,74 +92,3 @@ def test_mavproxy_announces_no_fence_breach(vehicle, tmp_path):
     text = "".join(mp.seen)
     assert "fence breach" not in text.lower(), text
     assert "fence present" not in text.lower(), text  # the simulator checks no fence
-
-
-# --- modes ----------------------------------------------------------------------------
-
-def _mode(m):
-    hb = vehicle_heartbeat(m)
-    return hb.base_mode & 0x7F, hb.custom_mode
-
-
-def test_unknown_custom_mode_refused_by_do_set_mode(vehicle):
-    m = start(vehicle).gcs()
-    before = _mode(m)
-    result = run(m, 176, MODE_CUSTOM, UNKNOWN)
-    assert result in (MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED)
-    assert statustext(m, "no such custom mode") is not None
-    for _ in range(2):  # heartbeats after the refusal: nothing changed
-        assert _mode(m) == before
-    # As COMMAND_INT too.
-    m.mav.command_int_send(1, 1, 0, 176, 0, 0, MODE_CUSTOM, 99, 0, 0, 0, 0, 0)
-    assert ack(m, 176).result in (MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED)
-    assert _mode(m) == before
-
-
-def test_known_custom_mode_accepted_and_shown(vehicle):
-    m = start(vehicle).gcs()
-    # The ground station gives only CUSTOM_MODE_ENABLED; the mode sets its own flags.
-    assert run(m, 176, MODE_CUSTOM, AUTO) == MAV_RESULT_ACCEPTED
-    hb = vehicle_heartbeat(m, lambda h: h.custom_mode == AUTO)
-    assert hb is not None and hb.base_mode & 0x7F == MODE_CUSTOM | MODE_STABILIZE | MODE_AUTO
-    assert run(m, 176, MODE_CUSTOM | MODE_AUTO, LOITER) == MAV_RESULT_ACCEPTED
-    hb = vehicle_heartbeat(m, lambda h: h.custom_mode == LOITER)
-    assert hb is not None and hb.base_mode & 0x7F == MODE_CUSTOM | MODE_STABILIZE  # LOITER is not AUTO
-
-
-def test_set_mode_message_unknown_refused_with_statustext(vehicle):
-    m = start(vehicle).gcs()
-    assert run(m, 176, MODE_CUSTOM, LOITER) == MAV_RESULT_ACCEPTED
-    assert vehicle_heartbeat(m, lambda h: h.custom_mode == LOITER) is not None
-    m.mav.set_mode_send(1, MODE_CUSTOM, UNKNOWN)  # SET_MODE (#11) has no ACK
-    assert statustext(m, "no such custom mode") is not None
-    for _ in range(2):
-        assert _mode(m) == (MODE_CUSTOM | MODE_STABILIZE, LOITER)
-    m.mav.set_mode_send(1, MODE_CUSTOM, AUTO)
-    assert vehicle_heartbeat(m, lambda h: h.custom_mode == AUTO) is not None
-
-
-def test_unsupported_mode_flag_refused(vehicle):
-    m = start(vehicle).gcs()
-    before = _mode(m)
-    assert run(m, 176, 32) == MAV_RESULT_DENIED  # HIL: not something this vehicle does
-    assert statustext(m, "not supported") is not None
-    assert _mode(m) == before
-
-
-def test_mavproxy_mode_names(vehicle, tmp_path):
-    # MAVProxy names a generic multicopter's custom modes as ArduCopter's: AUTO and
-    # LOITER are the unix vehicle's, GUIDED is not (it is refused, and the mode stays).
-    v, port, check = two_links(vehicle)
-    mp = MavProxy(port, tmp_path, "mode,cmdlong")
-    try:
-        mp.expect(r"online system 1|Detected vehicle 1:1")
-        mp.say("mode LOITER")
-        assert vehicle_heartbeat(check, lambda h: h.custom_mode == LOITER, timeout=10) is not None
-        mp.say("mode GUIDED")
-        assert recv(check, "STATUSTEXT", 5, lambda s: "no such custom mode" in s.text) is not None
-        assert vehicle_heartbeat(check).custom_mode == LOITER
-        mp.say("mode AUTO")
-        hb = vehicle_heartbeat(check, lambda h: h.custom_mode == AUTO, timeout=10)
-        assert hb is not None and hb.base_mode & MODE_AUTO
-    finally:
-        mp.close()
