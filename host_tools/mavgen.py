@@ -326,11 +326,14 @@ def committed():
     """The dialects kept in the repository: [(name, xml path, module path)]."""
     import pymavlink  # only to find the XML it ships
 
-    pym = os.path.join(os.path.dirname(pymavlink.__file__), "dialects", "v20", "common.xml")
+    pym = os.path.join(os.path.dirname(pymavlink.__file__), "dialects", "v20")
     seed = os.path.join(ROOT, "..", "shared", "spec", "common-2012.xml")
     return [
-        ("common", pym, os.path.join(DIALECTS, "common.py")),
+        ("common", os.path.join(pym, "common.xml"), os.path.join(DIALECTS, "common.py")),
         ("seed2012", seed, os.path.join(DIALECTS, "seed2012.py")),
+        # common and the messages on their way into it (standard modes: AVAILABLE_MODES,
+        # CURRENT_MODE), for ground stations built with them (--set dialect=development)
+        ("development", os.path.join(pym, "development.xml"), os.path.join(DIALECTS, "development.py")),
     ]
 
 

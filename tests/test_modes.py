@@ -170,3 +170,39 @@ def test_available_and_current_mode_where_the_dialect_has_them(vehicle):
     m = start(vehicle, *NO_APP).gcs()
     assert run(m, 512, 435) == MAV_RESULT_DENIED
     assert run(m, 512, 436) == MAV_RESULT_DENIED
+
+
+def test_available_and_current_mode_in_the_development_dialect(vehicle):
+    v = start(vehicle, "--set", "dialect=development", *NO_APP)
+    m = v.gcs(dialect="development")
+    assert run(m, 512, 435) == MAV_RESULT_ACCEPTED  # param2 0: every mode
+    modes = {}
+    deadline = time.time() + 5
+    while len(modes) < len(TABLE) and time.time() < deadline:
+        a = recv(m, "AVAILABLE_MODES", 1)
+        if a is not None:
+            modes[a.mode_index] = a
+    assert sorted(modes) == list(range(1, len(TABLE) + 1))
+    by_name = {}
+    for a in modes.values():
+        assert a.number_modes == len(TABLE)
+        name = a.mode_name or {s: n for n, (_, _, _, s) in TABLE.items() if s}[a.standard_mode]
+        by_name[name] = a
+    assert set(by_name) == set(TABLE)
+    for name, (number, _, _, standard) in TABLE.items():
+        a = by_name[name]
+        assert (a.custom_mode, a.standard_mode) == (number, standard), name
+        # TAKEOFF and OFFBOARD share GUIDED's number: not selectable by it.
+        assert a.properties == (2 if name in ("TAKEOFF", "OFFBOARD") else 0), name
+    # One by index (param2).
+    assert run(m, 512, 435, 7) == MAV_RESULT_ACCEPTED
+    a = recv(m, "AVAILABLE_MODES", 3)
+    assert a is not None and a.mode_index == 7
+    assert run(m, 512, 435, 99) == MAV_RESULT_DENIED
+    # CURRENT_MODE on request and on a change, with the mode asked for.
+    assert run(m, 512, 436) == MAV_RESULT_ACCEPTED
+    c = recv(m, "CURRENT_MODE", 3)
+    assert c is not None and c.custom_mode == 0 and c.standard_mode == 0
+    assert run(m, 262, 5) == MAV_RESULT_ACCEPTED  # standard SAFE_RECOVERY: RTL
+    c = recv(m, "CURRENT_MODE", 3, lambda c: c.custom_mode == 6)
+    assert c is not None and c.standard_mode == 5 and c.intended_custom_mode == 6

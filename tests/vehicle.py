@@ -52,7 +52,7 @@ class Vehicle:
                                      stderr=subprocess.STDOUT, text=True)
         return self
 
-    def gcs(self, version=2, source_system=255, source_component=190, port=None, wait=True):
+    def gcs(self, version=2, source_system=255, source_component=190, port=None, wait=True, dialect="common"):
         """A pymavlink connection to this vehicle's udpin link, heartbeat seen."""
         from pymavlink import mavutil
 
@@ -60,7 +60,7 @@ class Vehicle:
         m = mavutil.mavlink_connection("udpout:127.0.0.1:%d" % (port or self.port),
                                        source_system=source_system,
                                        source_component=source_component,
-                                       dialect="common")
+                                       dialect=dialect)
         if version == 1:
             # pymavlink packs by its module's protocol version: force MAVLink 1 on every send.
             send = m.mav.send
