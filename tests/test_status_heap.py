@@ -26,10 +26,10 @@ def test_steady_state_under_heap_lock(tmp_path, services, portable):
     figures = dict(kv.split("=") for kv in line.split()[1:])
     assert int(figures["requested"]) == 0  # the same rounds unlocked, counted by mem_total
     assert int(figures["heartbeats"]) == 6  # one a simulated second
-    assert int(figures["acks"]) == 96  # 120 frames of the burst, 8 of every 10 are commands
-    assert int(figures["unsupported"]) >= 12
-    assert int(figures["version"]) >= 12 and int(figures["ping"]) >= 12
-    assert int(figures["errors_comm"]) >= 12  # the corrupted frames, counted
+    assert int(figures["acks"]) == 88  # 120 frames of the burst, 11 of every 15 are commands
+    assert int(figures["unsupported"]) >= 16  # an unknown command and a standard mode it has not
+    assert int(figures["version"]) >= 8 and int(figures["ping"]) >= 8  # once a round of the burst
+    assert int(figures["errors_comm"]) >= 8  # the corrupted frames, counted
     assert int(figures["text"]) >= 8
 
 

@@ -4,7 +4,8 @@
 SERVICES is a comma list (status,commands[,params,...]). A ground station's heartbeat
 every simulated second, and a burst of commands each 50 ms: arm/disarm, an unknown
 command, REQUEST_MESSAGE (SYS_STATUS, AUTOPILOT_VERSION), COMMAND_INT, SET_MODE, PING,
-a corrupted frame, a STATUSTEXT. SYS_STATUS carries the pre-arm and geofence bits the
+a corrupted frame, a STATUSTEXT, the flight-mode requests (standard modes, PX4's
+encoding, a MAVSDK heartbeat turning the link to PX4's numbering). SYS_STATUS carries the pre-arm and geofence bits the
 status service fills from the arming check (a hook here) and the fence. After a warm-up the rounds run twice: unlocked, counted
 with micropython.mem_total(), then under heap_lock() (any allocation raises MemoryError).
 Prints `OK rounds=N acks=N ... requested=0` (the figures of the locked run; requested:
@@ -27,7 +28,8 @@ from harness import Bench
 def build(services, storage):
     b = Bench(services=services, storage=storage)
     st = b.ep.services["status"]
-    st.custom_modes = ((3, "AUTO", 4 | 16),)
+    # Modes as the unix board's table has them: number, name, flags, PX4 main/sub, standard.
+    st.custom_modes = ((0, "STABILIZE", 64 | 16, 7, 0, 0), (3, "AUTO", 4 | 16, 4, 4, 6), (6, "RTL", 4 | 16, 4, 5, 5))
     st.arm_check = _no_objection  # asked once a second for SYS_STATUS's pre-arm health
     g = b.gcs()
     frames = (
@@ -42,6 +44,11 @@ def build(services, storage):
         g.frame(4, 1234567, 9, 0, 0),  # PING request
         g.command(400, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1, 1, 1),  # arm, confirmation 1
         g.command(400, 0.0, 21196.0),  # forced disarm
+        g.command(262, 5.0),  # DO_SET_STANDARD_MODE SAFE_RECOVERY: RTL
+        g.command(262, 2.0),  # ... ORBIT, which it has not: UNSUPPORTED
+        g.frame(11, 4 << 16 | 4 << 24, 1, 1),  # SET_MODE PX4-encoded AUTO.MISSION
+        b.gcs(245, 190).heartbeat(),  # MAVSDK's: the link reads modes PX4's way from now on
+        g.command(176, 1.0, 4.0, 5.0),  # DO_SET_MODE, PX4's way: AUTO.RTL
     )
     bad = bytearray(frames[3])
     bad[-1] ^= 0xFF  # CRC error
