@@ -299,7 +299,7 @@ def test_commands(gcs_link):
     r = mavctl(link, "command", "NO_SUCH_COMMAND")
     assert r.returncode == 2 and "unknown MAV_CMD" in r.stderr
     assert "MAV_RESULT_ACCEPTED" in ok(mavctl(link, "mode", "MAV_MODE_FLAG_CUSTOM_MODE_ENABLED", "5"))  # LOITER
-    r = mavctl(link, "mode", "MAV_MODE_FLAG_CUSTOM_MODE_ENABLED", "4")  # not in the unix board's table
+    r = mavctl(link, "mode", "MAV_MODE_FLAG_CUSTOM_MODE_ENABLED", "7")  # not in the unix board's table
     assert r.returncode == 1 and "MAV_RESULT_DENIED" in r.stdout
 
     assert "MAV_RESULT_ACCEPTED" in ok(mavctl(link, "stream", "ATTITUDE", "20"))
