@@ -1,0 +1,531 @@
+"""MAVLink FTP: ground stations list, read, write and remove files in the storage folder.
+
+FILE_TRANSFER_PROTOCOL (#110 of the common dialect) as the MAVLink FTP service defines
+it, served over the vehicle's storage folder with the rules of ftp_files.py (nothing
+outside it, never the stack's own files, FTP_SPACE). "/" is the folder itself.
+Opcodes: ListDirectory, OpenFileRO, ReadFile, BurstReadFile, CreateFile, WriteFile,
+TerminateSession, ResetSessions, RemoveFile, CalcFileCRC32; any other is NAKed
+UnknownCommand. Errors are the protocol's NAK codes: a full store is FailErrno with
+ENOSPC, a protected file FileProtected, a path that leaves the folder Fail; refusals
+also get a STATUSTEXT saying why.
+
+Sessions: FTP_SESSIONS open files (4), each under the session number the ground station
+asked with (MAVProxy routes replies by it; pymavlink takes whatever comes back). A
+CreateFile or OpenFileRO under a number already open closes the old file first.
+
+Retries: every reply carries the request's sequence number plus one; a request that
+repeats the last one byte for byte (a retry: its reply was lost) gets the same reply
+again without running twice, so a CreateFile retried after its ACK was lost does not
+empty the file again. BurstReadFile is the exception: a repeat restarts the burst.
+A burst streams FTP_BURST_PACKETS replies (sequence numbers counting on) from tick(),
+as the link's budget lets them go (at the streams' rank); the last has burst_complete.
+
+Reading and writing an open file (ReadFile, BurstReadFile, WriteFile) and answering
+allocate nothing: the request, the reply and the burst each have a buffer made at
+start-up, and files are read into and written from memoryviews of them. Opening,
+listing, removing and checksumming are rare events: they open a locked heap
+(compat.heap_open) for their moment.
+
+The seed's own file transfer (FILE_TRANSFER_START / _DIR_LIST / _RES, the same ids in
+the seed2012 dialect) is ftp_seed.py; create() attaches whichever the dialect has.
+"""
+import os
+
+from ..compat import const, heap_open, heap_close
+from ..kernels import copy, zero
+from ..link import RANK_BULK, RANK_AUTO
+from . import ftp_files
+from .ftp_files import Folder, read_into, write_from, OK, BAD, IS_PROTECTED, ENOSPC
+
+_MSG_FTP = const(110)
+_LEN = const(254)  # the message's payload: network, system, component, 251 bytes of FTP
+# Offsets in it: the FTP header, then data.
+_SEQ = const(3)
+_SESSION = const(5)
+_OPCODE = const(6)
+_SIZE = const(7)
+_REQ_OPCODE = const(8)
+_BURST_COMPLETE = const(9)
+_OFFSET = const(11)
+_DATA = const(15)
+_DATA_MAX = const(239)
+
+# opcodes
+_TERMINATE = const(1)
+_RESET = const(2)
+_LIST = const(3)
+_OPEN_RO = const(4)
+_READ = const(5)
+_CREATE = const(6)
+_WRITE = const(7)
+_REMOVE = const(8)
+_CRC32 = const(14)
+_BURST = const(15)
+_ACK = const(128)
+_NAK = const(129)
+_RARE = const((1 << 1) | (1 << 2) | (1 << 3) | (1 << 4) | (1 << 6) | (1 << 8) | (1 << 14))
+
+# NAK codes
+FAIL = const(1)
+FAIL_ERRNO = const(2)
+INVALID_DATA_SIZE = const(3)
+INVALID_SESSION = const(4)
+NO_SESSIONS = const(5)
+EOF = const(6)
+UNKNOWN_COMMAND = const(7)
+FILE_EXISTS = const(8)
+FILE_PROTECTED = const(9)
+FILE_NOT_FOUND = const(10)
+
+_FREE = const(0)
+_READING = const(1)
+_WRITING = const(2)
+
+_PER_TICK = const(8)  # burst replies one tick may send
+_FRAME = const(280)  # bytes of a full MAVLink 2 FILE_TRANSFER_PROTOCOL frame, for the budget
+_WARNING = const(4)
+
+
+class Ftp:
+    NAME = "ftp"
+    CLOCK = False
+
+    def __init__(self, sessions=4, burst_packets=32, protected=(), space=0):
+        self.burst_packets = burst_packets if 0 < burst_packets < 256 else 255
+        self._protected = protected
+        self._space = space
+        self.folder = None
+        self.ep = None
+        self._req = bytearray(_LEN)  # the request being answered (and the last, for repeats)
+        self._reply = bytearray(_LEN)  # its reply, kept for a repeat
+        self._burst = bytearray(_LEN)
+        self._wdata = memoryview(self._req)[_DATA:]
+        self._rdata = memoryview(self._reply)[_DATA:]
+        self._bdata = memoryview(self._burst)[_DATA:]
+        self._cached = False  # _req/_reply hold an answered request
+        self._from = 0  # its sender: sysid << 8 | compid
+        self._link = None
+        self._room = 0  # bytes the file being written may still grow by (FTP_SPACE)
+        # Sessions, by slot.
+        self._files = [None] * sessions
+        self._sid = bytearray(sessions)
+        self._mode = bytearray(sessions)
+        self._fsize = [0] * sessions
+        # Bursts in progress, by slot: replies left, next offset, size, sequence, link, to.
+        self._b_left = bytearray(sessions)
+        self._b_off = [0] * sessions
+        self._b_size = bytearray(sessions)
+        self._b_seq = [0] * sessions
+        self._b_link = [None] * sessions
+        self._b_to = [0] * sessions
+
+    def attach(self, ep):
+        self.ep = ep
+        root = getattr(getattr(ep, "storage", None), "root", None)
+        if root is None or getattr(ep.storage, "mem", None) is not None:
+            return  # no storage folder (storage_ram keeps named areas, not files)
+        self.folder = Folder(root, self._protected, self._space)
+        ep.on(_MSG_FTP, self._on_request)
+
+    # --- per packet (allocation-free; small functions: MicroPython puts a frame of more
+    # than about 11 words on the heap) ------------------------------------------------
+    def _on_request(self, link, p):
+        if not self.ep.for_us(p[1], p[2]):
+            return
+        who = link.rx.sysid << 8 | link.rx.compid
+        if self._cached and who == self._from and self._repeats(p):
+            link.send_payload(_MSG_FTP, self._reply, _LEN)
+            return
+        copy(self._req, p, 0, _LEN)
+        self._from = who
+        self._link = link
+        self._cached = False
+        op = p[_OPCODE]
+        if op == _BURST:
+            self._burst_begin(link)
+            return
+        self._answer(op)
+        self._cached = True
+        link.send_payload(_MSG_FTP, self._reply, _LEN)
+
+    def _repeats(self, p):
+        """Is p the last request again, byte for byte (header and data)?"""
+        q = self._req
+        n = _DATA + p[_SIZE]
+        if n > _LEN:
+            n = _LEN
+        i = 0
+        while i < n:
+            if p[i] != q[i]:
+                return False
+            i += 1
+        return True
+
+    def _answer(self, op):
+        if op == _READ:
+            self._read()
+        elif op == _WRITE:
+            self._write()
+        elif op < 16 and (1 << op) & _RARE:
+            depth = heap_open()
+            try:
+                self._rare(op)
+            finally:
+                heap_close(depth)
+        else:
+            self._nak(UNKNOWN_COMMAND, 0)
+
+    def _head(self, opcode, size):
+        """The reply's header for the request in _req."""
+        r = self._reply
+        q = self._req
+        r[0] = 0
+        r[1] = self._from >> 8
+        r[2] = self._from & 0xFF
+        seq = (q[_SEQ] | q[_SEQ + 1] << 8) + 1
+        r[_SEQ] = seq & 0xFF
+        r[_SEQ + 1] = (seq >> 8) & 0xFF
+        r[_SESSION] = q[_SESSION]
+        r[_OPCODE] = opcode
+        r[_SIZE] = size
+        r[_REQ_OPCODE] = q[_OPCODE]
+        r[_BURST_COMPLETE] = 0
+        r[10] = 0
+        copy(r, q, _OFFSET << 10 | _OFFSET, 4)
+        zero(r, _DATA + size, _LEN)
+
+    def _ack(self, size):
+        self._head(_ACK, size)
+
+    def _nak(self, error, errno):
+        self._head(_NAK, 2 if error == FAIL_ERRNO else 1)
+        self._reply[_DATA] = error
+        self._reply[_DATA + 1] = errno
+
+    def _offset(self, b):
+        """The offset field of buffer b, -1 past 2^30 (a 32-bit board's small ints)."""
+        if b[_OFFSET + 3] >= 0x40:
+            return -1
+        return b[_OFFSET] | b[_OFFSET + 1] << 8 | b[_OFFSET + 2] << 16 | b[_OFFSET + 3] << 24
+
+    def _slot(self, sid, mode):
+        """The slot of open session sid in this mode, -1 if none."""
+        i = 0
+        while i < len(self._sid):
+            if self._mode[i] == mode and self._sid[i] == sid:
+                return i
+            i += 1
+        return -1
+
+    def _read(self):
+        slot = self._slot(self._req[_SESSION], _READING)
+        if slot < 0:
+            self._nak(INVALID_SESSION, 0)
+            return
+        off = self._offset(self._req)
+        left = self._fsize[slot] - off
+        if off < 0 or left <= 0:
+            self._nak(EOF, 0)
+            return
+        n = self._req[_SIZE]
+        if n == 0 or n > _DATA_MAX:
+            n = _DATA_MAX
+        self._files[slot].seek(off)
+        n = read_into(self._files[slot], self._rdata, n if n < left else left)
+        self._ack(n)
+
+    def _write(self):
+        slot = self._slot(self._req[_SESSION], _WRITING)
+        if slot < 0:
+            self._nak(INVALID_SESSION, 0)
+            return
+        off = self._offset(self._req)
+        n = self._req[_SIZE]
+        if n > _DATA_MAX:
+            self._nak(INVALID_DATA_SIZE, 0)
+            return
+        grow = off + n - self._fsize[slot]
+        if off < 0 or grow > self._room:
+            self._nak(FAIL_ERRNO, ENOSPC)  # past FTP_SPACE: the store is full
+            return
+        if self._put(self._files[slot], off, n) != n:
+            self._nak(FAIL_ERRNO, ENOSPC)  # the file system took less: full
+            return
+        if grow > 0:
+            self._fsize[slot] += grow
+            self._room -= grow
+        self._ack(0)
+
+    def _put(self, f, off, n):
+        try:
+            f.seek(off)
+            return write_from(f, self._wdata, n)
+        except OSError:
+            return -1
+
+    # --- bursts -------------------------------------------------------------------
+    def _burst_begin(self, link):
+        q = self._req
+        slot = self._slot(q[_SESSION], _READING)
+        off = self._offset(q)
+        if slot < 0 or off < 0:
+            self._nak(INVALID_SESSION if slot < 0 else EOF, 0)
+            self._reply[_BURST_COMPLETE] = 1
+            link.send_payload(_MSG_FTP, self._reply, _LEN)
+            return
+        n = q[_SIZE]
+        self._b_size[slot] = n if 0 < n <= _DATA_MAX else _DATA_MAX
+        self._b_off[slot] = off
+        self._b_seq[slot] = ((q[_SEQ] | q[_SEQ + 1] << 8) + 1) & 0xFFFF
+        self._b_link[slot] = link
+        self._b_to[slot] = self._from
+        self._b_left[slot] = self.burst_packets
+
+    def tick(self, now):
+        i = 0
+        while i < len(self._b_left):
+            if self._b_left[i]:
+                self._pump(i)
+            i += 1
+
+    def _pump(self, slot):
+        link = self._b_link[slot]
+        k = 0
+        while k < _PER_TICK and self._b_left[slot]:
+            if not link.can_send(_FRAME, RANK_BULK):
+                return
+            self._burst_next(slot)
+            link.rank = RANK_BULK
+            link.send_payload(_MSG_FTP, self._burst, _LEN)
+            link.rank = RANK_AUTO
+            k += 1
+
+    def _burst_next(self, slot):
+        """The next reply of slot's burst into _burst: data, or NAK EOF past the end."""
+        b = self._burst
+        self._burst_head(slot)
+        off = self._b_off[slot]
+        n = self._fsize[slot] - off
+        if n > self._b_size[slot]:
+            n = self._b_size[slot]
+        if n > 0:
+            self._files[slot].seek(off)
+            n = read_into(self._files[slot], self._bdata, n)
+        if n <= 0:  # at the end: EOF ends the burst
+            b[_OPCODE] = _NAK
+            b[_SIZE] = 1
+            b[_DATA] = EOF
+            b[_BURST_COMPLETE] = 1
+            zero(b, _DATA + 1, _LEN)
+            self._b_left[slot] = 0
+            return
+        b[_SIZE] = n
+        zero(b, _DATA + n, _LEN)
+        self._b_off[slot] = off + n
+        self._b_left[slot] -= 1
+        if n < self._b_size[slot]:
+            self._b_left[slot] = 0  # a short reply is the file's end
+        b[_BURST_COMPLETE] = 0 if self._b_left[slot] else 1
+
+    def _burst_head(self, slot):
+        b = self._burst
+        to = self._b_to[slot]
+        seq = self._b_seq[slot]
+        b[0] = 0
+        b[1] = to >> 8
+        b[2] = to & 0xFF
+        b[_SEQ] = seq & 0xFF
+        b[_SEQ + 1] = seq >> 8
+        self._b_seq[slot] = (seq + 1) & 0xFFFF
+        b[_SESSION] = self._sid[slot]
+        b[_OPCODE] = _ACK
+        b[_REQ_OPCODE] = _BURST
+        b[10] = 0
+        off = self._b_off[slot]
+        b[_OFFSET] = off & 0xFF
+        b[_OFFSET + 1] = (off >> 8) & 0xFF
+        b[_OFFSET + 2] = (off >> 16) & 0xFF
+        b[_OFFSET + 3] = off >> 24
+
+    # --- rare events (they allocate, under heap_open) ------------------------------
+    def _rare(self, op):
+        if op == _TERMINATE:
+            slot = self._slot(self._req[_SESSION], _READING)
+            if slot < 0:
+                slot = self._slot(self._req[_SESSION], _WRITING)
+            if slot < 0:
+                self._nak(INVALID_SESSION, 0)
+                return
+            self._close(slot)
+            self._ack(0)
+        elif op == _RESET:
+            for slot in range(len(self._files)):
+                self._close(slot)
+            self._ack(0)
+        elif op == _LIST:
+            self._list()
+        elif op == _OPEN_RO or op == _CRC32:
+            self._open_ro(op)
+        elif op == _CREATE:
+            self._create()
+        elif op == _REMOVE:
+            self._remove()
+
+    def _path(self, want):
+        """The request's path resolved -> host path, or None with the NAK made."""
+        q = self._req
+        code, path = self.folder.resolve(bytes(q[_DATA:_DATA + q[_SIZE]]), True, want)
+        if code == OK:
+            return path
+        if code == IS_PROTECTED:
+            self._nak(FILE_PROTECTED, 0)
+            self._say("FTP: the stack's own file, not served")
+        elif code == BAD:
+            self._nak(FAIL, 0)
+            self._say("FTP: path leaves the storage folder")
+        else:
+            self._nak(FILE_NOT_FOUND, 0)
+        return None
+
+    def _say(self, text):
+        self.ep.statustext(_WARNING, text)
+
+    def _allowed(self):
+        if self.ep.allows(self._link):
+            return True
+        self._nak(FAIL, 0)
+        self._say("FTP: not in control, files unchanged")
+        return False
+
+    def _list(self):
+        path = self._path(0x4000)
+        if path is None:
+            return
+        entries = self.folder.entries(path, path == self.folder.root)
+        i = self._offset(self._req)
+        if i < 0 or i >= len(entries):
+            self._nak(EOF, 0)
+            return
+        r = self._reply
+        n = 0
+        while i < len(entries):
+            name, is_dir, size = entries[i]
+            text = ("D" + name if is_dir else "F%s\t%d" % (name, size)).encode() + b"\0"
+            if n + len(text) > _DATA_MAX:
+                break
+            r[_DATA + n:_DATA + n + len(text)] = text
+            n += len(text)
+            i += 1
+        if n == 0:  # a name too long for one reply
+            self._nak(FAIL, 0)
+            return
+        self._head(_ACK, n)  # (after the data: it zeroes only past it)
+
+    def _take(self, sid):
+        """A slot for session sid: its own (closed first), else a free one, else -1."""
+        for mode in (_READING, _WRITING):
+            slot = self._slot(sid, mode)
+            if slot >= 0:
+                self._close(slot)
+                return slot
+        for slot in range(len(self._mode)):
+            if self._mode[slot] == _FREE:
+                return slot
+        return -1
+
+    def _close(self, slot):
+        f = self._files[slot]
+        self._files[slot] = None
+        self._mode[slot] = _FREE
+        self._b_left[slot] = 0
+        self._b_link[slot] = None
+        if f is not None:
+            try:
+                f.close()
+            except OSError:
+                pass
+
+    def _open_ro(self, op):
+        path = self._path(0x8000)
+        if path is None:
+            return
+        if op == _CRC32:
+            with open(path, "rb") as f:
+                crc = ftp_files.crc32(f, self._rdata)
+            self._ack(4)
+            _put_u32(self._reply, _DATA, crc)
+            return
+        slot = self._take(self._req[_SESSION])
+        if slot < 0:
+            self._nak(NO_SESSIONS, 0)
+            return
+        self._files[slot] = open(path, "rb")
+        self._fsize[slot] = size = ftp_files.size_of(path)
+        self._sid[slot] = self._req[_SESSION]
+        self._mode[slot] = _READING
+        self._ack(4)
+        _put_u32(self._reply, _DATA, size)
+
+    def _create(self):
+        if not self._allowed():
+            return
+        path = self._path(0)
+        if path is None:
+            return
+        slot = self._take(self._req[_SESSION])
+        if slot < 0:
+            self._nak(NO_SESSIONS, 0)
+            return
+        had = ftp_files.size_of(path)
+        try:
+            f = open(path, "wb")
+        except OSError as e:
+            self._nak(FAIL_ERRNO, e.args[0] if e.args else 0)
+            return
+        self._files[slot] = f
+        self._fsize[slot] = 0
+        self._sid[slot] = self._req[_SESSION]
+        self._mode[slot] = _WRITING
+        self._room = self.folder.room() + had if self.folder.space else self.folder.room()
+        self._ack(0)
+
+    def _remove(self):
+        if not self._allowed():
+            return
+        path = self._path(0x8000)
+        if path is None:
+            return
+        try:
+            os.remove(path)
+        except OSError as e:
+            self._nak(FAIL_ERRNO, e.args[0] if e.args else 0)
+            return
+        self._ack(0)
+
+
+def _put_u32(b, o, v):
+    b[o] = v & 0xFF
+    b[o + 1] = (v >> 8) & 0xFF
+    b[o + 2] = (v >> 16) & 0xFF
+    b[o + 3] = (v >> 24) & 0xFF
+
+
+def _names(setting):
+    # FTP_PROTECTED: a tuple in a profile, "a,b" from --set
+    return tuple(setting.split(",")) if isinstance(setting, str) else tuple(setting or ())
+
+
+def create(ep):
+    fmt = ep.dialect.FMT.get(_MSG_FTP)
+    if fmt is not None and fmt.endswith("251B"):
+        return ep.add(Ftp(
+            sessions=ep.setting("FTP_SESSIONS", 4),
+            burst_packets=ep.setting("FTP_BURST_PACKETS", 32),
+            protected=_names(ep.setting("FTP_PROTECTED", ())),
+            space=ep.setting("FTP_SPACE", 0),
+        ))
+    if ep.has(112) and ep.dialect.FMT.get(112) == "<QB":  # the seed's FILE_TRANSFER_RES
+        from .ftp_seed import SeedFiles
+
+        return ep.add(SeedFiles(protected=_names(ep.setting("FTP_PROTECTED", ())), space=ep.setting("FTP_SPACE", 0)))
+    return None
