@@ -19,10 +19,12 @@ MCU_TOOLS_OK = command -v qemu-system-arm >/dev/null && command -v arm-none-eabi
 
 setup: $(STAMP)
 
-$(STAMP): requirements.txt requirements-nodeps.txt
+# The last step installs host_tools as an editable package: the `mavctl` command in .venv/bin.
+$(STAMP): requirements.txt requirements-nodeps.txt host_tools/pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps -r requirements-nodeps.txt
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e host_tools
 	touch $(STAMP)
 
 test: setup mcu-tools
