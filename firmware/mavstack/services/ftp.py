@@ -106,6 +106,7 @@ class Ftp:
         self._from = 0  # its sender: sysid << 8 | compid
         self._link = None
         self._room = 0  # bytes the file being written may still grow by (FTP_SPACE)
+        self._wf = None  # the file a WriteFile goes to
         # Sessions, by slot.
         self._files = [None] * sessions
         self._sid = bytearray(sessions)
@@ -130,23 +131,30 @@ class Ftp:
     # --- per packet (allocation-free; small functions: MicroPython puts a frame of more
     # than about 11 words on the heap) ------------------------------------------------
     def _on_request(self, link, p):
-        if not self.ep.for_us(p[1], p[2]):
+        if not self.ep.for_us(p[1], p[2]) or self._repeat(link, p):
             return
-        who = link.rx.sysid << 8 | link.rx.compid
-        if self._cached and who == self._from and self._repeats(p):
-            link.send_payload(_MSG_FTP, self._reply, _LEN)
-            return
-        copy(self._req, p, 0, _LEN)
-        self._from = who
-        self._link = link
-        self._cached = False
-        op = p[_OPCODE]
-        if op == _BURST:
+        self._take(link, p)
+        if p[_OPCODE] == _BURST:
             self._burst_begin(link)
             return
-        self._answer(op)
+        self._answer(p[_OPCODE])
         self._cached = True
         link.send_payload(_MSG_FTP, self._reply, _LEN)
+
+    def _repeat(self, link, p):
+        """A retry of the last request: its reply again -> True."""
+        if not self._cached or (link.rx.sysid << 8 | link.rx.compid) != self._from:
+            return False
+        if not self._repeats(p):
+            return False
+        link.send_payload(_MSG_FTP, self._reply, _LEN)
+        return True
+
+    def _take(self, link, p):
+        copy(self._req, p, 0, _LEN)
+        self._from = link.rx.sysid << 8 | link.rx.compid
+        self._link = link
+        self._cached = False
 
     def _repeats(self, p):
         """Is p the last request again, byte for byte (header and data)?"""
@@ -167,11 +175,7 @@ class Ftp:
         elif op == _WRITE:
             self._write()
         elif op < 16 and (1 << op) & _RARE:
-            depth = heap_open()
-            try:
-                self._rare(op)
-            finally:
-                heap_close(depth)
+            self._rare_event(op)
         else:
             self._nak(UNKNOWN_COMMAND, 0)
 
@@ -238,17 +242,19 @@ class Ftp:
         slot = self._slot(self._req[_SESSION], _WRITING)
         if slot < 0:
             self._nak(INVALID_SESSION, 0)
-            return
-        off = self._offset(self._req)
-        n = self._req[_SIZE]
-        if n > _DATA_MAX:
+        elif self._req[_SIZE] > _DATA_MAX:
             self._nak(INVALID_DATA_SIZE, 0)
-            return
+        else:
+            self._write_at(slot, self._offset(self._req), self._req[_SIZE])
+
+    def _write_at(self, slot, off, n):
         grow = off + n - self._fsize[slot]
         if off < 0 or grow > self._room:
             self._nak(FAIL_ERRNO, ENOSPC)  # past FTP_SPACE: the store is full
             return
-        if self._put(self._files[slot], off, n) != n:
+        self._wf = self._files[slot]
+        self._wf.seek(off)
+        if self._put(n) != n:
             self._nak(FAIL_ERRNO, ENOSPC)  # the file system took less: full
             return
         if grow > 0:
@@ -256,10 +262,11 @@ class Ftp:
             self._room -= grow
         self._ack(0)
 
-    def _put(self, f, off, n):
+    def _put(self, n):
+        # (seeking a file never fails; writing may: full, or removed under us). Few
+        # locals: a try block takes frame words too.
         try:
-            f.seek(off)
-            return write_from(f, self._wdata, n)
+            return write_from(self._wf, self._wdata, n)
         except OSError:
             return -1
 
@@ -348,6 +355,13 @@ class Ftp:
         b[_OFFSET + 3] = off >> 24
 
     # --- rare events (they allocate, under heap_open) ------------------------------
+    def _rare_event(self, op):
+        depth = heap_open()
+        try:
+            self._rare(op)
+        finally:
+            heap_close(depth)
+
     def _rare(self, op):
         if op == _TERMINATE:
             slot = self._slot(self._req[_SESSION], _READING)
@@ -421,7 +435,7 @@ class Ftp:
             return
         self._head(_ACK, n)  # (after the data: it zeroes only past it)
 
-    def _take(self, sid):
+    def _session_slot(self, sid):
         """A slot for session sid: its own (closed first), else a free one, else -1."""
         for mode in (_READING, _WRITING):
             slot = self._slot(sid, mode)
@@ -439,6 +453,8 @@ class Ftp:
         self._mode[slot] = _FREE
         self._b_left[slot] = 0
         self._b_link[slot] = None
+        if self._wf is f:
+            self._wf = None
         if f is not None:
             try:
                 f.close()
@@ -455,7 +471,7 @@ class Ftp:
             self._ack(4)
             _put_u32(self._reply, _DATA, crc)
             return
-        slot = self._take(self._req[_SESSION])
+        slot = self._session_slot(self._req[_SESSION])
         if slot < 0:
             self._nak(NO_SESSIONS, 0)
             return
@@ -472,7 +488,7 @@ class Ftp:
         path = self._path(0)
         if path is None:
             return
-        slot = self._take(self._req[_SESSION])
+        slot = self._session_slot(self._req[_SESSION])
         if slot < 0:
             self._nak(NO_SESSIONS, 0)
             return
