@@ -112,6 +112,8 @@ class Ftp:
         self._sid = bytearray(sessions)
         self._mode = bytearray(sessions)
         self._fsize = [0] * sessions
+        self._paths = [None] * sessions  # the file's host path
+        self._full = bytearray(sessions)  # 1: a write found no space; closing removes the file
         # Bursts in progress, by slot: replies left, next offset, size, sequence, link, to.
         self._b_left = bytearray(sessions)
         self._b_off = [0] * sessions
@@ -249,14 +251,18 @@ class Ftp:
 
     def _write_at(self, slot, off, n):
         grow = off + n - self._fsize[slot]
-        if off < 0 or grow > self._room:
-            self._nak(FAIL_ERRNO, ENOSPC)  # past FTP_SPACE: the store is full
-            return
-        self._wf = self._files[slot]
-        self._wf.seek(off)
-        if self._put(n) != n:
-            self._nak(FAIL_ERRNO, ENOSPC)  # the file system took less: full
-            return
+        if off >= 0 and grow <= self._room:
+            self._wf = self._files[slot]
+            self._wf.seek(off)
+            if self._put(n) == n:
+                self._wrote(slot, grow)
+                return
+        # Past FTP_SPACE, or the file system took less: the store is full. The partial
+        # file goes when the session closes, giving its room back.
+        self._full[slot] = 1
+        self._nak(FAIL_ERRNO, ENOSPC)
+
+    def _wrote(self, slot, grow):
         if grow > 0:
             self._fsize[slot] += grow
             self._room -= grow
@@ -458,8 +464,12 @@ class Ftp:
         if f is not None:
             try:
                 f.close()
+                if self._full[slot]:
+                    os.remove(self._paths[slot])  # an upload the store had no room for
             except OSError:
                 pass
+        self._full[slot] = 0
+        self._paths[slot] = None
 
     def _open_ro(self, op):
         path = self._path(0x8000)
@@ -476,6 +486,7 @@ class Ftp:
             self._nak(NO_SESSIONS, 0)
             return
         self._files[slot] = open(path, "rb")
+        self._paths[slot] = path
         self._fsize[slot] = size = ftp_files.size_of(path)
         self._sid[slot] = self._req[_SESSION]
         self._mode[slot] = _READING
@@ -499,6 +510,7 @@ class Ftp:
             self._nak(FAIL_ERRNO, e.args[0] if e.args else 0)
             return
         self._files[slot] = f
+        self._paths[slot] = path
         self._fsize[slot] = 0
         self._sid[slot] = self._req[_SESSION]
         self._mode[slot] = _WRITING

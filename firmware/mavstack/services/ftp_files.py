@@ -7,9 +7,9 @@ One set of rules for both protocols:
 - the stack's own files (parameters, mission/fence/rally slots, the signing key, and
   their `.new` copies) are neither listed, read, written nor removed: PROTECTED, plus
   a board's FTP_PROTECTED names;
-- FTP_SPACE (bytes, 0: no limit) caps what all files in the folder may hold, so files
-  sent by a ground station never take the room parameter and mission saves need; a
-  write past it, or a file system that is full, is "no space".
+- FTP_SPACE (bytes, 0: no limit) caps what the folder's files other than the stack's
+  own may hold together, so files sent by ground stations never take the room parameter
+  and mission saves need; a write past it, or a file system that is full, is "no space".
 
 Everything here runs on rare events (opening, listing, removing, checksumming a file)
 and may allocate; the callers open a locked heap around it (compat.heap_open). Reading
@@ -139,8 +139,12 @@ class Folder:
         return out
 
     def used(self):
-        """Bytes held by all files in the folder (its own included), for FTP_SPACE."""
-        return _tree_size(self.root)
+        """Bytes held by the folder's files but the stack's own, for FTP_SPACE."""
+        total = _tree_size(self.root)
+        for name in os.listdir(self.root):
+            if self.is_protected(name) and _kind(self.root, name) == _S_IFREG:
+                total -= size_of(self.root + "/" + name)
+        return total
 
     def room(self):
         """Bytes a ground station may still add (a large number without FTP_SPACE)."""
