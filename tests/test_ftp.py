@@ -175,17 +175,47 @@ def test_mavproxy_ftp_over_a_lossy_link(vehicle, tmp_path):
         relay.close()
 
 
+def _mavsdk_wait(start, timeout=30):
+    """Run an async MAVSDK FTP call -> its final FtpResult (None: no end in time)."""
+    import queue
+
+    from mavsdk.plugins.ftp import FtpResult
+
+    results = queue.Queue()
+
+    def done(result, progress, user_data):
+        if result != FtpResult.NEXT:
+            results.put(result)
+
+    start(done)
+    try:
+        return results.get(timeout=timeout)
+    except queue.Empty:
+        return None
+
+
 def test_mavsdk_ftp_plugin(vehicle, tmp_path):
     from gcs_tools import mavsdk_system
-    from mavsdk.plugins.ftp import Ftp
+    from mavsdk.plugins.ftp import Ftp, FtpResult
 
-    st = storage_with(tmp_path, {"a.txt": b"alpha\n" * 50, "sub/b.txt": b"beta"})
+    alpha = os.urandom(3000)
+    st = storage_with(tmp_path, {"a.bin": alpha, "sub/b.txt": b"beta"})
     v = vehicle(storage=st)
+    (tmp_path / "dl").mkdir()
+    (tmp_path / "up.bin").write_bytes(os.urandom(2000))
     with mavsdk_system(v.port) as system:
         ftp = Ftp(system)
-        listing = ftp.list_directory("/")
-        names = {e.name for e in listing.entries} if hasattr(listing, "entries") else set(map(str, listing))
-        assert any("a.txt" in n for n in names) and any("sub" in n for n in names), listing
+        entries = [str(e) for e in ftp.list_directory("/").entries]
+        assert any("a.bin" in e for e in entries) and any("sub" in e for e in entries), entries
+        for burst in (True, False):  # BurstReadFile, then ReadFile
+            result = _mavsdk_wait(lambda cb: ftp.download_async("/a.bin", str(tmp_path / "dl"), burst, cb))
+            assert result == FtpResult.SUCCESS, (burst, result)
+            assert (tmp_path / "dl" / "a.bin").read_bytes() == alpha
+            (tmp_path / "dl" / "a.bin").unlink()
+        result = _mavsdk_wait(lambda cb: ftp.upload_async(str(tmp_path / "up.bin"), "/sub", cb))
+        assert result == FtpResult.SUCCESS, result
+        assert (st / "sub" / "up.bin").read_bytes() == (tmp_path / "up.bin").read_bytes()
+        assert ftp.are_files_identical(str(tmp_path / "up.bin"), "/sub/up.bin")  # CalcFileCRC32
         ftp.remove_file("/sub/b.txt")
         assert not (st / "sub" / "b.txt").exists()
 
