@@ -9,7 +9,10 @@ import mavctl_link
 from mavctl_cli import group, taken
 from mavctl_errors import EXIT_OK, EXIT_REFUSED, Failure, usage
 from mavctl_vehicle import MISSION_TYPES, enum_name, enum_value, mavlink, message_id, message_name
+from mavctl_progress import progress
 from mission_files import read_wpl, write_wpl
+from param_files import read_params, write_params
+from plan_files import MAV_AUTOPILOT_GENERIC, MAV_TYPE_QUADROTOR, Plan, is_plan, read_plan, write_plan
 
 
 def result_status(what, ack):
@@ -51,6 +54,11 @@ def params_set(v, args):
     print("%-16s %s" % (args.name, echoed.text()))
 
 
+def check_name(args):
+    if len(args.name.encode()) > 16:
+        raise usage("parameter names have at most 16 characters")
+
+
 def params_storage(v, args):
     # MAV_CMD_PREFLIGHT_STORAGE param1: 0 read from storage, 1 write, 2 reset to defaults.
     action = {"load": 0, "save": 1, "load-defaults": 2}[args.action]
@@ -58,9 +66,116 @@ def params_storage(v, args):
                          v.command(mavlink.MAV_CMD_PREFLIGHT_STORAGE, [action]))
 
 
-def check_name(args):
-    if len(args.name.encode()) > 16:
-        raise usage("parameter names have at most 16 characters")
+def all_params(v):
+    with progress("parameters") as bar:
+        return v.param_list(progress=bar)
+
+
+def params_save(v, args):
+    if args.file is None:
+        return params_storage(v, args)
+    params = all_params(v)
+    write_params(args.file, params, v.target_system, v.target_component)
+    print("saved %d parameters to %s" % (len(params), args.file))
+
+
+def wanted_values(args, current):
+    """[(Param on the vehicle, 4 wire bytes wanted)] for the file's lines; any name the
+    vehicle lacks or value its type cannot hold stops the run before anything is sent."""
+    out = []
+    for name, value, _ptype, line in args.values:
+        where = "%s:%d: %s" % (args.file, line, name)
+        p = current.get(name)
+        if p is None:
+            raise usage("%s: no such parameter on this vehicle" % where)
+        try:
+            out.append((p, p.encode(value)))
+        except Failure as e:
+            raise usage("%s:%d: %s" % (args.file, line, e))
+    return out
+
+
+def params_load(v, args):
+    if args.file is None:
+        return params_storage(v, args)
+    current = {p.name: p for p in all_params(v)}
+    wanted = wanted_values(args, current)
+    changes = [(p, raw) for p, raw in wanted if not p.same_value(raw)]
+    refused = []
+    with progress("set parameters", len(changes)) as bar:
+        for done, (p, raw) in enumerate(changes, 1):
+            try:
+                echoed = v.param_set(p.name, raw, p.type)
+            except Failure as e:
+                refused.append("%s (%s)" % (p.name, e))
+                continue
+            if echoed.same_value(raw):
+                print("%-16s %s -> %s" % (p.name, p.text(), echoed.text()))
+            else:
+                refused.append("%s (stays %s)" % (p.name, echoed.text()))
+            bar(done)
+    print("%s: %d changed, %d unchanged, %d refused%s" % (
+        args.file, len(changes) - len(refused), len(wanted) - len(changes), len(refused),
+        ": " + ", ".join(refused) if refused else ""))
+    return EXIT_REFUSED if refused else EXIT_OK
+
+
+def params_diff(v, args):
+    current = {p.name: p for p in all_params(v)}
+    other = args.values
+    label = args.file or "defaults (%s)" % args.board
+    differ = 0
+    print("%-16s %-14s %s" % ("NAME", "VEHICLE", label))
+    for name, value, _ptype, _line in other:
+        p = current.get(name)
+        if p is None:
+            print("%-16s %-14s %s" % (name, "-", value))
+            differ += 1
+            continue
+        try:
+            same = p.same_value(p.encode(value))
+        except Failure:
+            same = False
+        if not same:
+            print("%-16s %-14s %s" % (name, p.text(), value))
+            differ += 1
+    if args.defaults:
+        for name in sorted(set(current) - {row[0] for row in other}):
+            print("%-16s %-14s %s" % (name, current[name].text(), "-"))
+            differ += 1
+    print("%d of %d parameters differ" % (differ, len(current)), file=sys.stderr)
+
+
+def check_params_file(args):
+    if args.file is not None:
+        args.values = read_params(args.file)
+
+
+def check_diff(args):
+    if (args.file is None) == (not args.defaults):
+        raise usage("params diff FILE, or params diff --defaults [--board BOARD]")
+    if args.defaults:
+        args.values = board_defaults(args.board)
+    else:
+        args.values = read_params(args.file)
+
+
+def board_defaults(board):
+    """[(name, default as text, type, 0)] from the board profile's parameter table in
+    this checkout (boards/BOARD.py PARAMS): what the vehicle starts with before any change."""
+    import os
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    if not os.path.isfile(os.path.join(root, "boards", board + ".py")):
+        raise usage("no board profile boards/%s.py" % board)
+    paths = [os.path.join(root, "firmware"), os.path.join(root, "boards")]
+    sys.path[:0] = paths
+    try:
+        table = __import__(board).PARAMS
+    except Exception as e:
+        raise usage("boards/%s.py: cannot read its PARAMS: %s" % (board, e))
+    finally:
+        del sys.path[:len(paths)]
+    return [(row[0], repr(row[2]), row[1], 0) for row in table]
 
 
 def register_params(sub):
@@ -75,33 +190,69 @@ def register_params(sub):
     p.add_argument("name")
     p.add_argument("value")
     p.set_defaults(run=params_set, check=check_name)
-    for action, text in (("save", "keep the values in the vehicle's storage"),
-                         ("load", "reload the values from the vehicle's storage"),
-                         ("load-defaults", "reset the vehicle's parameters to their defaults")):
-        p = params.add_parser(action, help=text)
-        p.set_defaults(run=params_storage)
+    files = "FILE.params (QGroundControl) or FILE.parm (MAVProxy)"
+    p = params.add_parser("save", help="all parameters into FILE; no FILE: into the vehicle's storage")
+    p.add_argument("file", nargs="?", help=files)
+    p.set_defaults(run=params_save)
+    p = params.add_parser("load", help="set the values of FILE that differ; no FILE: reload the "
+                          "vehicle's storage")
+    p.add_argument("file", nargs="?", help=files)
+    p.set_defaults(run=params_load, check=check_params_file)
+    p = params.add_parser("load-defaults", help="reset the vehicle's parameters to their defaults")
+    p.set_defaults(run=params_storage)
+    p = params.add_parser("diff", help="the vehicle's values that differ from FILE or the defaults")
+    p.add_argument("file", nargs="?", help=files)
+    p.add_argument("--defaults", action="store_true", help="compare with the board's defaults")
+    p.add_argument("--board", default="unix", help="board profile for --defaults (default unix)")
+    p.set_defaults(run=params_diff, check=check_diff)
 
 
 # --- mission ------------------------------------------------------------------------
 
+def transfer(what, run):
+    with progress(what) as bar:
+        return run(bar)
+
+
 def mission_upload(v, args):
-    v.mission_upload(args.items, MISSION_TYPES[args.type])
-    print("uploaded %d %s items" % (len(args.items), args.type))
+    counts = []
+    for name, items in args.parts:
+        transfer("upload %s" % name,
+                 lambda bar: v.mission_upload(items, MISSION_TYPES[name], progress=bar))
+        counts.append("%d %s" % (len(items), name))
+    print("uploaded %s items" % ", ".join(counts))
 
 
 def mission_download(v, args):
-    items = v.mission_download(MISSION_TYPES[args.type])
+    if args.file and is_plan(args.file):
+        parts = {}
+        for name in (("mission", "fence", "rally") if args.type is None else (args.type,)):
+            parts[name] = transfer("download %s" % name,
+                                   lambda bar: v.mission_download(MISSION_TYPES[name], progress=bar))
+        hb = v.heartbeat_msg
+        plan = Plan(home=v.home_position(),
+                    firmware=hb.autopilot if hb else MAV_AUTOPILOT_GENERIC,
+                    vehicle=hb.type if hb else MAV_TYPE_QUADROTOR, **parts)
+        write_plan(plan, args.file)
+        print("downloaded %s items to %s" % (", ".join("%d %s" % (len(items), name)
+                                                        for name, items in parts.items()), args.file))
+        return
+    mtype = args.type or "mission"
+    items = transfer("download %s" % mtype,
+                     lambda bar: v.mission_download(MISSION_TYPES[mtype], progress=bar))
     if args.file and args.file != "-":
         with open(args.file, "w", encoding="utf-8") as f:
             write_wpl(items, f)
-        print("downloaded %d %s items to %s" % (len(items), args.type, args.file))
+        print("downloaded %d %s items to %s" % (len(items), mtype, args.file))
     else:
         write_wpl(items, sys.stdout)
 
 
 def mission_clear(v, args):
-    v.mission_clear(MISSION_TYPES[args.type])
-    print("cleared the %s" % args.type)
+    names = ("mission", "fence", "rally") if args.type == "all" else (args.type or "mission",)
+    for name in names:
+        v.mission_clear(MISSION_TYPES[name])
+    print("cleared the %s" % ", ".join(names))
 
 
 def mission_current(v, args):
@@ -110,22 +261,31 @@ def mission_current(v, args):
 
 
 def check_upload(args):
-    args.items = read_wpl(args.file)
+    """Read the whole file before connecting: a malformed one sends nothing."""
+    if is_plan(args.file):
+        plan = read_plan(args.file)
+        args.parts = [(name, items) for name, items in plan.parts()
+                      if args.type is None or name == args.type]
+    else:
+        args.parts = [(args.type or "mission", read_wpl(args.file))]
 
 
 def register_mission(sub):
     mission = group(sub, "mission", help="upload, download, clear a mission, fence or rally points")
+    types = tuple(MISSION_TYPES)
 
-    def add(action, run, help, check=None):
+    def add(action, run, help, check=None, choices=types):
         p = mission.add_parser(action, help=help)
-        p.add_argument("--type", choices=tuple(MISSION_TYPES), default="mission")
+        p.add_argument("--type", choices=choices, default=None,
+                       help="which part (default: the mission; a .plan: all three)")
         p.set_defaults(run=run, check=check)
         return p
 
-    add("upload", mission_upload, "send a QGC WPL 110 file", check_upload).add_argument("file")
-    add("download", mission_download, "fetch into a QGC WPL 110 file").add_argument(
-        "file", nargs="?", help="default: stdout")
-    add("clear", mission_clear, "remove every item")
+    add("upload", mission_upload, "send a .plan (mission, fence, rally) or a QGC WPL 110 file",
+        check_upload).add_argument("file")
+    add("download", mission_download, "fetch into a .plan (all three parts) or a QGC WPL 110 "
+        "file").add_argument("file", nargs="?", help="FILE.plan, FILE (QGC WPL 110) or - (stdout)")
+    add("clear", mission_clear, "remove every item", choices=types + ("all",))
     p = mission.add_parser("current", help="make item N the current one")
     p.add_argument("seq", type=int, metavar="N")
     p.set_defaults(run=mission_current)

@@ -76,6 +76,7 @@ class Vehicle:
         self.echo_statustext = echo_statustext
         self._next_heartbeat = 0.0
         self._param_encoding = None
+        self.heartbeat_msg = None  # the vehicle's first HEARTBEAT (type, autopilot)
 
     def heartbeat(self):
         now = time.monotonic()
@@ -114,6 +115,8 @@ class Vehicle:
                 continue
             self.target_system = msg.get_srcSystem()
             self.target_component = msg.get_srcComponent()
+            if kind == "HEARTBEAT":
+                self.heartbeat_msg = msg
             return msg
         raise Failure("no HEARTBEAT from a vehicle within %g s: is it powered, on this link, at this baud?" % timeout,
                       EXIT_NO_HEARTBEAT)
@@ -215,8 +218,9 @@ class Vehicle:
             return self.param_from(msg)
         raise Failure("no parameter %s (the vehicle did not answer)" % name)
 
-    def param_list(self, idle=1.0, tries=5):
-        """Every parameter, by index: PARAM_REQUEST_LIST, then missing ones one by one."""
+    def param_list(self, idle=1.0, tries=5, progress=None):
+        """Every parameter, by index: PARAM_REQUEST_LIST, then missing ones one by one.
+        progress(done, total), if given, is told as values arrive."""
         params = {}
         count = None
         asked = 0
@@ -230,6 +234,8 @@ class Vehicle:
                 count = msg.param_count
                 if msg.param_index < count:
                     params[msg.param_index] = self.param_from(msg)
+                    if progress is not None:
+                        progress(len(params), count)
                 continue
             if now - last < idle:
                 continue
@@ -267,8 +273,9 @@ class Vehicle:
 
     # --- missions
 
-    def mission_upload(self, items, mtype, timeout=1.5, tries=5):
-        """MISSION_COUNT, answer each MISSION_REQUEST(_INT), until the MISSION_ACK."""
+    def mission_upload(self, items, mtype, timeout=1.5, tries=5, progress=None):
+        """MISSION_COUNT, answer each MISSION_REQUEST(_INT), until the MISSION_ACK;
+        progress(done, total), if given, is told as items go."""
         n = len(items)
         self.mav.mission_count_send(self.target_system, self.target_component, n, mtype)
         asked = 1
@@ -297,8 +304,10 @@ class Vehicle:
             else:
                 self.mav.send(item.to_float(self.mav, self.target_system, self.target_component, mtype))
             sent.add(msg.seq)
+            if progress is not None:
+                progress(len(sent), n)
 
-    def mission_download(self, mtype, timeout=1.5, tries=5):
+    def mission_download(self, mtype, timeout=1.5, tries=5, progress=None):
         """MISSION_REQUEST_LIST -> COUNT, MISSION_REQUEST_INT each item, MISSION_ACK."""
         mine = (lambda m: m.mission_type == mtype and self.for_me(m))
         count = None
@@ -325,12 +334,24 @@ class Vehicle:
                 if msg.get_type() == "MISSION_ACK":
                     raise Failure("download refused: %s" % enum_name("MAV_MISSION_RESULT", msg.type))
                 items.append(Item.from_message(msg))
+                if progress is not None:
+                    progress(len(items), count)
                 break
             else:
                 raise Failure("no answer for item %d of %d" % (seq, count))
         self.mav.mission_ack_send(self.target_system, self.target_component,
                                   mavlink.MAV_MISSION_ACCEPTED, mtype)
         return items
+
+    def home_position(self, timeout=1.5):
+        """(lat, lon, alt) of the vehicle's HOME_POSITION, None if it does not say."""
+        self.mav.command_long_send(self.target_system, self.target_component,
+                                   mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                                   mavlink.MAVLINK_MSG_ID_HOME_POSITION, 0, 0, 0, 0, 0, 0)
+        msg = self.recv(("HOME_POSITION",), timeout)
+        if msg is None:
+            return None
+        return msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1e3
 
     def mission_clear(self, mtype, tries=3, timeout=1.5):
         for _ in range(tries):

@@ -21,7 +21,6 @@ def f32_text(x):
     return repr(x)
 
 
-
 class Item:
     """One mission item as in a QGC WPL file: x, y in degrees (or metres in local frames)."""
 
@@ -33,6 +32,14 @@ class Item:
 
     def scale(self):
         return 1e4 if self.frame in LOCAL_FRAMES else 1e7
+
+    def check_xy(self, failure):
+        """Raise failure(why) unless x and y fit MISSION_ITEM_INT's int32 (degrees * 1e7,
+        metres * 1e4)."""
+        for v in (self.x, self.y):
+            v = float(v)
+            if not math.isfinite(v) or abs(round(v * self.scale())) >= 1 << 31:
+                raise failure("x and y must be numbers within the int32 range")
 
     @classmethod
     def from_message(cls, m):
@@ -107,10 +114,7 @@ def read_wpl(path):
         if ints[0] != len(items):
             raise usage("%s:%d: item %d where %d was due" % (path, number, ints[0], len(items)))
         item = Item(*ints[:4], *nums, ints[4])
-        for v in (item.x, item.y):
-            # MISSION_ITEM_INT carries x and y as int32 (degrees * 1e7, metres * 1e4).
-            if not math.isfinite(v) or abs(round(v * item.scale())) >= 1 << 31:
-                raise usage("%s:%d: x and y must be numbers within the int32 range" % (path, number))
+        item.check_xy(lambda what: usage("%s:%d: %s" % (path, number, what)))
         items.append(item)
     return items
 
