@@ -8,7 +8,7 @@ SYSID = 1
 COMPID = 1
 MAV_TYPE = 2  # MAV_TYPE_QUADROTOR
 MAV_AUTOPILOT = 0  # MAV_AUTOPILOT_GENERIC
-SERVICES = ("status", "params", "commands", "missions", "streams", "ftp")
+SERVICES = ("status", "params", "commands", "missions", "inputs", "streams", "ftp")  # inputs before streams: its slots stream by default
 STORAGE = __file__.rsplit("/", 2)[0] + "/storage"
 LINKS = ("udpout:127.0.0.1:14550",)
 UDP_BYTES_PER_S = 200000
@@ -36,6 +36,9 @@ FLIGHT_MODES = (
     (4, "OFFBOARD", 16 | 8, 6, 0, 0),  # follows an offboard computer's setpoints
 )
 MODE_NUMBERING = "auto"  # per link, as its ground station reads modes (modes.py), or "ardupilot" / "px4"
+# inputs (mavstack/services/inputs.py)
+INPUT_TIMEOUT_MS = 1000  # an input that stops this long is lost: on_input_lost (the simulator's failsafe)
+RC_OVERRIDE_TIMEOUT_MS = 3000  # an RC override channel not set again this long goes back to the radio
 RAM_BUDGET = 384 * 1024  # heap the vehicle may hold after start-up (main.py reports it): every service and the simulator, 64-bit pointers
 
 
@@ -80,6 +83,10 @@ DEFAULT_STREAMS = (
     (147, 1),  # BATTERY_STATUS
     (245, 1),  # EXTENDED_SYS_STATE
     (242, 0.5),  # HOME_POSITION
+    (83, 4),  # ATTITUDE_TARGET            (sent once a setpoint was taken)
+    (85, 4),  # POSITION_TARGET_LOCAL_NED
+    (87, 4),  # POSITION_TARGET_GLOBAL_INT
+    (91, 10),  # HIL_CONTROLS              (while in HIL)
 )
 
 

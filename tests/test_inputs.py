@@ -1,0 +1,217 @@
+"""Pilot inputs (services/inputs.py) over UDP with pymavlink, and the simulated pilot
+(firmware/sim_inputs.py) on a fake simulator.
+
+The service: setpoints answered with their target messages (the fields as sent, the
+type_mask and frame kept), in today's message set and the seed's; messages for another
+vehicle and, under operator control, from a station not in control, not taken; HIL
+accepted where the board allows it, then HIL_CONTROLS streamed from the pilot's input.
+These run on a heap-locked vehicle without the simulator (`application=0`): every path
+they take allocates nothing.
+"""
+import math
+import os
+import struct
+import sys
+import time
+
+import pytest
+
+from conftest import FIRMWARE, recv
+from gcs_tools import MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, listen, run, start, statustext
+
+LOCKED = ("--set", "application=0", "--set", "heap_lock=1")
+POS_ONLY = 0b100111111000  # x y z and yaw (yaw rate ignored): MAVSDK set_position_ned
+VEL_ONLY = 0b010111000111  # vx vy vz and yaw rate (yaw ignored)
+
+
+def _target_local(m, x, y, z, mask=POS_ONLY, yaw=0.5, ts=None, frame=1):
+    m.mav.set_position_target_local_ned_send(0, m.target_system if ts is None else ts, 1, frame, mask,
+                                             x, y, z, 0.5, -0.25, 0.125, 0, 0, 0, yaw, 0.0)
+
+
+def _alive(v):
+    v.check_alive()
+    assert "MemoryError" not in v.output()
+
+
+def test_setpoints_answered_with_their_targets(vehicle):
+    v = start(vehicle, *LOCKED)
+    m = v.gcs()
+    _target_local(m, 12.5, -3.25, -10.0)
+    t = listen(m, "POSITION_TARGET_LOCAL_NED", 5, lambda t: t.x == 12.5)
+    assert t is not None
+    assert (t.x, t.y, t.z, t.vx, t.vy, t.vz, t.yaw) == (12.5, -3.25, -10.0, 0.5, -0.25, 0.125, 0.5)
+    assert t.type_mask == POS_ONLY and t.coordinate_frame == 1
+    m.mav.set_position_target_global_int_send(0, 1, 1, 6, VEL_ONLY, 473977420, 85455940, 30.0,
+                                              1.5, 2.5, -0.5, 0, 0, 0, 0, 0.25)
+    g = listen(m, "POSITION_TARGET_GLOBAL_INT", 5, lambda t: t.lat_int == 473977420)
+    assert g is not None and g.lon_int == 85455940 and g.alt == 30.0
+    assert (g.vx, g.vy, g.vz, g.yaw_rate, g.type_mask, g.coordinate_frame) == (1.5, 2.5, -0.5, 0.25, VEL_ONLY, 6)
+    m.mav.set_attitude_target_send(0, 1, 1, 0b111, [1.0, 0.0, 0.0, 0.0], 0, 0, 0, 0.625)
+    a = listen(m, "ATTITUDE_TARGET", 5, lambda t: t.thrust == 0.625)
+    assert a is not None and list(a.q) == [1.0, 0.0, 0.0, 0.0] and a.type_mask == 0b111
+    _alive(v)
+
+
+def test_only_what_is_addressed_to_us(vehicle):
+    v = start(vehicle, *LOCKED)
+    m = v.gcs()
+    _target_local(m, 1.0, 2.0, -3.0)
+    assert listen(m, "POSITION_TARGET_LOCAL_NED", 5, lambda t: t.x == 1.0) is not None
+    _target_local(m, 99.0, 2.0, -3.0, ts=42)  # another vehicle's
+    _target_local(m, 7.0, 2.0, -3.0, ts=0)  # broadcast: ours too
+    t = listen(m, "POSITION_TARGET_LOCAL_NED", 5, lambda t: t.x != 1.0)
+    assert t is not None and t.x == 7.0
+    _alive(v)
+
+
+def test_operator_control_keeps_others_out(vehicle):
+    v = start(vehicle, *LOCKED, "--set", "operator_passkey=secret")
+    m = v.gcs()
+    other = v.gcs(source_system=200, source_component=1)
+    m.mav.change_operator_control_send(1, 0, 0, b"secret")
+    assert recv(m, "CHANGE_OPERATOR_CONTROL_ACK", 5, lambda a: a.ack == 0) is not None
+    _target_local(other, 50.0, 0.0, -5.0)  # from the station not in control: not taken
+    _target_local(m, 5.0, 0.0, -5.0)
+    t = listen(m, "POSITION_TARGET_LOCAL_NED", 5, lambda t: t.x != 0.0)
+    assert t is not None and t.x == 5.0
+    deadline = time.time() + 1.5
+    while time.time() < deadline:
+        t = recv(m, "POSITION_TARGET_LOCAL_NED", 0.3)
+        assert t is None or t.x == 5.0
+    _alive(v)
+
+
+def test_hil_accepted_where_the_board_allows_it(vehicle):
+    v = start(vehicle, *LOCKED, "--set", "mode_flags=125")
+    m = v.gcs()
+    assert run(m, 176, 32 | 1, 0) == MAV_RESULT_ACCEPTED  # DO_SET_MODE HIL_ENABLED, STABILIZE
+    hb = listen(m, "HEARTBEAT", 5, lambda h: h.get_srcSystem() == 1 and h.base_mode & 32)
+    assert hb is not None
+    deadline = time.time() + 5
+    while time.time() < deadline:
+        m.mav.manual_control_send(1, 500, -250, 750, 1000, 0)
+        h = recv(m, "HIL_CONTROLS", 0.2, lambda h: h.throttle == 0.75)
+        if h is not None:
+            break
+    assert h is not None and (h.roll_ailerons, h.pitch_elevator, h.yaw_rudder) == (-0.25, 0.5, 1.0)
+    assert h.mode & 32
+    assert run(m, 176, 1, 0) == MAV_RESULT_ACCEPTED  # out of HIL
+    assert listen(m, "HEARTBEAT", 5, lambda h: h.get_srcSystem() == 1 and not h.base_mode & 32) is not None
+    _alive(v)
+
+
+def test_hil_refused_on_the_default_unix_board(vehicle):
+    m = start(vehicle, *LOCKED).gcs()
+    assert run(m, 176, 32 | 1, 0) == MAV_RESULT_DENIED
+    assert statustext(m, "HIL not supported") is not None
+
+
+# --- the simulated pilot, in-process -------------------------------------------------
+
+def _bench(**kw):
+    path = os.path.join(os.path.dirname(__file__), "mpy")
+    for p in (path, FIRMWARE):
+        if p not in sys.path:
+            sys.path.insert(0, p)
+    from harness import Bench
+
+    return Bench(**kw)
+
+
+@pytest.fixture
+def bench():
+    return _bench(services=("status", "commands", "inputs"))
+
+
+def test_seed_setpoints_answered():
+    # The seed's message set (--set dialect=seed2012): its setpoints are inputs, and
+    # SET_LOCAL_POSITION_SETPOINT / SET_GLOBAL_POSITION_SETPOINT_INT are answered with
+    # LOCAL_POSITION_SETPOINT / GLOBAL_POSITION_SETPOINT_INT as sent.
+    from mavstack.dialects import seed2012
+
+    b = _bench(services=("status", "commands", "inputs", "streams"), dialect=seed2012)
+    inputs = b.ep.services["inputs"]
+    assert inputs.position_local is None and inputs.seed_local is not None
+    g = b.gcs()
+    got = {}
+    b.watch = lambda msgid, p: got.__setitem__(msgid, bytes(p))
+    b.send(g.frame(50, 4.0, 5.0, -6.0, 0.25, 1, 1, 1))
+    b.send(g.frame(53, 473977420, 85455940, 30000, 9000, 3))
+    b.send(g.frame(56, 0.1, 0.2, 0.3, 0.5, 1, 1))
+    b.send(g.frame(148, 1, 2, 3, 4, 5, 6, 7, 8, 1))
+    b.run(5)
+    assert inputs.seed_local.milli(0) == 4000 and inputs.seed_local.milli(8) == -6000
+    assert inputs.seed_global.i32(0) == 473977420 and inputs.seed_rpyt.milli(12) == 500
+    assert inputs.seed_8dof.milli(28) == 8000
+    link = b.ep.links[0]
+    assert b.ep.producers[51](link) and b.ep.producers[52](link)
+    b.run(5)
+    assert struct.unpack("<ffffB", got[51][:17]) == (4.0, 5.0, -6.0, 0.25, 1)
+    assert struct.unpack("<iiihB", got[52][:15]) == (473977420, 85455940, 30000, 9000, 3)
+    b.send(g.frame(50, 9.0, 5.0, -6.0, 0.25, 2, 1, 1))  # another vehicle's
+    b.run(5)
+    assert inputs.seed_local.milli(0) == 4000 and inputs.seed_local.count == 1
+
+
+class FakeSim:
+    def __init__(self, ep):
+        import simulator
+
+        self.ep = ep
+        self.lat, self.lon, self.alt = simulator.HOME_LAT, simulator.HOME_LON, simulator.HOME_ALT
+        self.heading = 0.0
+        self.reasons = []
+
+    def failsafe(self, reason):
+        self.reasons.append(reason)
+
+
+def test_pilot_manual_control_and_rc_override(bench):
+    from sim_inputs import PilotInputs
+
+    sim = FakeSim(bench.ep)
+    pilot = PilotInputs(sim)
+    g = bench.gcs()
+    assert pilot.demand("POSITION", 0.05) is None  # nothing yet: hold
+    bench.send(g.frame(69, 1000, 0, 1000, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0))  # full forward, full up
+    bench.run(5)
+    kind, vn, ve, vd, yr = pilot.demand("POSITION", 0.05)
+    assert kind == "vel" and vn == pytest.approx(5.0) and abs(ve) < 1e-9 and vd == pytest.approx(-2.5) and yr == 0
+    sim.heading = math.pi / 2  # facing east: forward is east
+    _, vn, ve, _, _ = pilot.demand("ALT_HOLD", 0.05)
+    assert abs(vn) < 1e-6 and ve == pytest.approx(5.0)
+    assert pilot.demand("AUTO", 0.05) is None  # not a pilot's mode
+    pilot.demand("POSITION", 0.05)
+    bench.run(1100)  # the stream stops: lost, failsafe in a manual mode
+    assert sim.reasons == ["Manual control lost"]
+    assert pilot.demand("POSITION", 0.05) is None
+    # RC override: channel 3 at 1600 climbs at a fifth of the climb rate; others not overridden
+    sim.heading = 0.0
+    bench.send(g.frame(70, 0, 0, 1600, 0, 0, 0, 0, 0, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0))
+    bench.run(5)
+    kind, vn, ve, vd, yr = pilot.demand("STABILIZE", 0.05)
+    assert kind == "vel" and vd == pytest.approx(-0.5) and vn == 0 and ve == 0
+
+
+def test_pilot_offboard_setpoints(bench):
+    import simulator
+    from sim_inputs import PilotInputs
+
+    sim = FakeSim(bench.ep)
+    pilot = PilotInputs(sim)
+    g = bench.gcs()
+    assert pilot.mode_check("OFFBOARD") == "no offboard setpoint"
+    bench.send(g.frame(84, 0, 10.0, 5.0, -20.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, POS_ONLY, 1, 1, 1))
+    bench.run(5)
+    assert pilot.mode_check("OFFBOARD") is None
+    kind, lat, lon, alt, yaw = pilot.demand("OFFBOARD", 0.05)
+    assert kind == "pos" and yaw == 1.0 and alt == pytest.approx(simulator.HOME_ALT + 20.0)
+    assert (lat - simulator.HOME_LAT) * math.radians(1) * 6378137.0 == pytest.approx(10.0, rel=1e-3)
+    assert (lon - simulator.HOME_LON) > 0
+    bench.send(g.frame(84, 0, 0.0, 0.0, 0.0, 1.0, -2.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.3, VEL_ONLY, 1, 1, 1))
+    bench.run(5)
+    kind, vn, ve, vd, yr = pilot.demand("OFFBOARD", 0.05)
+    assert kind == "vel" and (vn, ve, vd) == (1.0, -2.0, 0.5) and yr == pytest.approx(0.3)
+    bench.run(1100)
+    assert sim.reasons == ["Offboard setpoints lost"]
