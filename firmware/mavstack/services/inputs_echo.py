@@ -82,15 +82,27 @@ def _zero(b, o, end):
 
 def put_f32_milli(b, o, n):
     """Write n / 1000 as a little-endian float32 at b[o] from integer arithmetic alone
-    (|n| < 2^20): the mantissa by long division, rounded to nearest."""
-    sign = 0
-    if n < 0:
-        sign = 0x80
-        n = -n
+    (|n| < 2^20): the mantissa by long division, rounded to nearest. (In small
+    functions: each frame stays within what MicroPython keeps off the heap.)"""
     if n == 0:
         _zero(b, o, o + 4)
         return
-    # Scale so that d <= n < 2d (d = 1000 * 2^j): the value is then 1.x * 2^(e - 127).
+    sign = 0x80 if n < 0 else 0
+    if n < 0:
+        n = -n
+    e = _exponent(n)
+    m = _mantissa(n, e)
+    if m >= 0x800000:  # rounded up to the next power of two
+        m = 0
+        e += 1
+    b[o] = m & 0xFF
+    b[o + 1] = m >> 8 & 0xFF
+    b[o + 2] = (m >> 16 & 0x7F) | (e & 1) << 7
+    b[o + 3] = sign | e >> 1
+
+
+def _exponent(n):
+    # The biased exponent of n / 1000 (n > 0).
     e = 127
     d = 1000
     while n >= d << 1:
@@ -99,21 +111,24 @@ def put_f32_milli(b, o, n):
     while n < d:
         n <<= 1
         e -= 1
+    return e
+
+
+def _mantissa(n, e):
+    # The 23 fraction bits of n / 1000 = 1.f * 2^(e - 127), rounded (2^23: carried over).
+    if e >= 127:
+        d = 1000 << (e - 127)
+    else:
+        d = 1000
+        n <<= 127 - e
     r = n - d
     m = 0
     i = 0
-    while i < 24:  # 23 mantissa bits and one to round with
+    while i < 24:  # 23 bits and one to round with
         r <<= 1
         m <<= 1
         if r >= d:
             r -= d
             m |= 1
         i += 1
-    m = (m + 1) >> 1
-    if m >= 0x800000:
-        m = 0
-        e += 1
-    b[o] = m & 0xFF
-    b[o + 1] = m >> 8 & 0xFF
-    b[o + 2] = (m >> 16 & 0x7F) | (e & 1) << 7
-    b[o + 3] = sign | e >> 1
+    return (m + 1) >> 1

@@ -137,20 +137,20 @@ def milli(p, o):
     e = (hi >> 7) & 0xFF
     if e == 0xFF or e < 100:  # NaN, inf; |f| < 2^-27 reads 0
         return 0
-    if e > 146:  # |f| >= 2^20: f * 1000 too close to 2^30
-        return -_MILLI_MAX if hi & 0x8000 else _MILLI_MAX
-    # f = m * 2^(e - 150), m of 24 bits: f * 1000 = (m * 1000) >> (150 - e), m split in
-    # its top and bottom 12 bits so that no product reaches 2^30.
+    # |f| >= 2^20: f * 1000 too close to 2^30
+    v = _MILLI_MAX if e > 146 else _magnitude(p, o, hi, 150 - e)
+    return -v if hi & 0x8000 else v
+
+
+def _magnitude(p, o, hi, s):
+    # f = m * 2^-s (s >= 4), m of 24 bits: f * 1000 = (m * 1000) >> s, m split into its
+    # top 13 and bottom 11 bits so that no product reaches 2^30. (A function of its own:
+    # few locals, its frame stays off the heap.)
     mh = (hi & 0x7F | 0x80) << 5 | p[o + 1] >> 3
     ml = (p[o + 1] & 7) << 8 | p[o]
-    s = 150 - e  # 4 and up (e <= 146)
     if s <= 11:
-        v = (mh * 1000 << (11 - s)) + ((ml * 1000 + (1 << (s - 1))) >> s)
-    else:
-        v = (mh * 1000 + (ml * 1000 >> 11) + (1 << (s - 12))) >> (s - 11)
-    if v > _MILLI_MAX:
-        v = _MILLI_MAX
-    return -v if hi & 0x8000 else v
+        return (mh * 1000 << (11 - s)) + ((ml * 1000 + (1 << (s - 1))) >> s)
+    return (mh * 1000 + (ml * 1000 >> 11) + (1 << (s - 12))) >> (s - 11)
 
 
 # MANUAL_CONTROL: x y z r (int16), buttons (uint16), target, then the extensions
