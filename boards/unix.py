@@ -8,7 +8,8 @@ SYSID = 1
 COMPID = 1
 MAV_TYPE = 2  # MAV_TYPE_QUADROTOR
 MAV_AUTOPILOT = 0  # MAV_AUTOPILOT_GENERIC
-SERVICES = ("status", "params", "commands", "missions", "inputs", "streams", "ftp")  # inputs before streams: its slots stream by default
+SERVICES = ("status", "params", "commands", "missions", "inputs", "telemetry_seed", "streams", "ftp",
+            "geography", "servos", "debug", "auth", "calibration", "seed_commands")  # inputs before streams: its slots stream by default
 STORAGE = __file__.rsplit("/", 2)[0] + "/storage"
 LINKS = ("udpout:127.0.0.1:14550",)
 UDP_BYTES_PER_S = 200000
@@ -50,8 +51,18 @@ def transports():
 
 def application(endpoint):
     from simulator import Simulator
+    import sim_calibration
 
-    return Simulator(endpoint)
+    sim = Simulator(endpoint)
+    sim_calibration.compose(endpoint, sim)  # PREFLIGHT_CALIBRATION, DO_CONTROL_VIDEO
+    return sim
+
+
+# relays and servos (mavstack/services/servos.py): the motors are outputs 1-4, the
+# servo table 5-16 (SERVO_OUTPUT_RAW shows both)
+RELAYS = 4
+SERVO_CHANNELS = (5, 16)
+AUTH_KEY = None  # this vehicle's AUTH_KEY (services/auth.py; --set auth_key=...), sent only when signed
 
 
 # params

@@ -1,0 +1,324 @@
+"""Where the vehicle is allowed to be: the GPS global origin and the safety area.
+
+SET_GPS_GLOBAL_ORIGIN (#48) sets the origin of the local frame: it is kept (storage
+file "geography", with the area) and answered with GPS_GLOBAL_ORIGIN (#49) on every
+link when it changes, and on request (MAV_CMD_REQUEST_MESSAGE 49, streams).
+SAFETY_SET_ALLOWED_AREA (#54) sets the box the vehicle may fly in (two corners, in a
+global frame: degrees and metres; or in a local one: metres), kept likewise and answered
+with SAFETY_ALLOWED_AREA (#55). A box of six zeros clears it. Both need the sender to
+address us (target 0 or ours) and to be in control (operator control); a refusal is told
+in a STATUSTEXT (these messages have no acknowledgement of their own).
+
+The area is enforced through this service's API, for the others:
+    geo = ep.services["geography"]
+    geo.allows(lat_e7, lon_e7, alt_mm)   True inside the area (or without one); alt_mm
+                                         None: the altitude is not checked
+    geo.allows_local(x_m, y_m, z_m)      the same in the local frame (a local area)
+    geo.check_item(rec, frame)           a mission record (mission_store.py's layout) ->
+                                         0, or MAV_MISSION_INVALID_PARAM5_X / _PARAM6_Y /
+                                         _PARAM7 for the coordinate that is outside
+    geo.area_set, geo.origin_set         what has been given
+An altitude is compared as the frame gives it (MSL or relative, NED z for a local
+area): the area's z and the target's are taken to be in the same sense.
+
+LOCAL_POSITION_NED_SYSTEM_GLOBAL_OFFSET (#89) is a telemetry slot: the application
+calls geo.local_offset(x, y, z, roll, pitch, yaw) and streams or REQUEST_MESSAGE send
+it. STATE_CORRECTION (#64, the seed's set only) is handed to the application:
+geo.on_state_correction = handler(link, payload), the payload's nine float32 errors
+(xErr, yErr, zErr, rollErr, pitchErr, yawErr, vxErr, vyErr, vzErr) as they came.
+
+Allocation-free on a 32-bit board: the bounds are int32 bytes (1e7 degrees, or metres
+* 1e4 for local x/y and every z) made from the float32 fields by mission_items.fix,
+compared by 16-bit halves; a save opens the heap only for the storage's own moment.
+"""
+from struct import pack_into
+
+from ..compat import const
+from ..fields import i32_cmp, f32_is_nan
+from ..kernels import copy, crc16
+from .mission_items import fix, LOCAL_FRAMES
+from .statustext import WARNING
+
+_MSG_SET_GPS_GLOBAL_ORIGIN = const(48)
+_MSG_GPS_GLOBAL_ORIGIN = const(49)
+_MSG_SAFETY_SET_ALLOWED_AREA = const(54)
+_MSG_SAFETY_ALLOWED_AREA = const(55)
+_MSG_STATE_CORRECTION = const(64)
+_MSG_LOCAL_OFFSET = const(89)
+_STATE_CORRECTION_CRC_LEN = const(0x242482)  # the seed's #64 (today's #64 is another message)
+
+_INVALID_PARAM5_X = const(10)
+_INVALID_PARAM6_Y = const(11)
+_INVALID_PARAM7 = const(12)
+
+_FILE = "geography"
+# 0 flags (1 origin, 2 area), 1 area frame, 2 origin lat, lon, alt (int32 x3),
+# 14 area p1x, p1y, p1z, p2x, p2y, p2z (float32 as given), 38 CRC-16 of 0..37
+_FILE_LEN = const(40)
+_HAS_ORIGIN = const(1)
+_HAS_AREA = const(2)
+# The bounds, int32 each: x min, x max, y min, y max, z min, z max
+_XMIN = const(0)
+_YMIN = const(8)
+_ZMIN = const(16)
+
+
+class Geography:
+    NAME = "geography"
+
+    def __init__(self):
+        self.origin_set = False
+        self.area_set = False
+        self.area_local = False
+        self.on_state_correction = None  # handler(link, payload), the application's
+        self._file = bytearray(_FILE_LEN)
+        self._bounds = bytearray(24)
+        self._tmp = bytearray(24)  # the corners being checked
+        self._z = bytearray(4)  # a mission item's z as an int32
+        self._slot = None
+        self.refused = 0
+
+    def attach(self, ep):
+        self.ep = ep
+        ep.on(_MSG_SET_GPS_GLOBAL_ORIGIN, self._on_set_origin)
+        ep.on(_MSG_SAFETY_SET_ALLOWED_AREA, self._on_set_area)
+        if ep.dialect.CRC_LEN.get(_MSG_STATE_CORRECTION) == _STATE_CORRECTION_CRC_LEN:
+            ep.on(_MSG_STATE_CORRECTION, self._on_state_correction)
+        if ep.has(_MSG_GPS_GLOBAL_ORIGIN):
+            ep.producers[_MSG_GPS_GLOBAL_ORIGIN] = self.send_origin
+        if ep.has(_MSG_SAFETY_ALLOWED_AREA):
+            ep.producers[_MSG_SAFETY_ALLOWED_AREA] = self.send_area
+        if ep.has(_MSG_LOCAL_OFFSET):
+            from .telemetry import Slot
+
+            self._slot = Slot(ep, _MSG_LOCAL_OFFSET)
+            ep.producers[_MSG_LOCAL_OFFSET] = self._slot.send
+        self._load()
+        storage = getattr(ep, "storage", None)
+        if storage is not None:
+            storage.reserve(_FILE, _FILE_LEN)
+
+    # --- the API ---------------------------------------------------------------------
+    def allows(self, lat_e7, lon_e7, alt_mm=None):
+        """Is this global position (1e7 degrees, mm) inside the allowed area?"""
+        if not self.area_set or self.area_local:
+            return True
+        if not _between(self._bounds, _XMIN, lat_e7 >> 16, lat_e7 & 0xFFFF):
+            return False
+        if not _between(self._bounds, _YMIN, lon_e7 >> 16, lon_e7 & 0xFFFF):
+            return False
+        if alt_mm is None:
+            return True
+        z = alt_mm * 10  # the bounds' z is metres * 1e4
+        return _between(self._bounds, _ZMIN, z >> 16, z & 0xFFFF)
+
+    def allows_local(self, x_m, y_m, z_m=None):
+        """Is this local position (m, NED) inside the allowed area (when it is local)?"""
+        if not self.area_set or not self.area_local:
+            return True
+        for o, v in ((_XMIN, x_m), (_YMIN, y_m), (_ZMIN, z_m)):
+            if v is None:
+                continue
+            v = int(v * 10000)
+            if not _between(self._bounds, o, v >> 16, v & 0xFFFF):
+                return False
+        return True
+
+    def check_item(self, rec, frame):
+        """A mission record's position against the area -> 0 or the MAV_MISSION_RESULT
+        naming the coordinate outside it. Items in the other kind of frame (local items
+        against a global area and the reverse) and unset coordinates pass."""
+        if not self.area_set or (frame in LOCAL_FRAMES) != self.area_local:
+            return 0
+        b = self._bounds
+        if not _unset(rec, 16) and not _inside(b, _XMIN, rec, 16):
+            return _INVALID_PARAM5_X
+        if not _unset(rec, 20) and not _inside(b, _YMIN, rec, 20):
+            return _INVALID_PARAM6_Y
+        if f32_is_nan(rec, 24):
+            return 0
+        copy(self._z, rec, 24 << 10, 4)
+        fix(self._z, 0, True)
+        return 0 if _inside(b, _ZMIN, self._z, 0) else _INVALID_PARAM7
+
+    def local_offset(self, x, y, z, roll, pitch, yaw):
+        """LOCAL_POSITION_NED_SYSTEM_GLOBAL_OFFSET: m, rad."""
+        s = self._slot
+        if s is None:
+            return
+        pack_into("<fff", s.buf, 4, x, y, z)
+        pack_into("<fff", s.buf, 16, roll, pitch, yaw)
+        self.ep.clock.stamp_ms(s.buf, 0)
+        s.written = True
+
+    # --- producers ---------------------------------------------------------------------
+    def send_origin(self, link):
+        if not self.origin_set:
+            return False
+        off = link.begin()
+        copy(link.txbuf, self._file, 2 << 10 | off, 12)
+        return link.send(_MSG_GPS_GLOBAL_ORIGIN)
+
+    def send_area(self, link):
+        if not self.area_set:
+            return False
+        off = link.begin()
+        copy(link.txbuf, self._file, 14 << 10 | off, 24)
+        link.txbuf[off + 24] = self._file[1]
+        return link.send(_MSG_SAFETY_ALLOWED_AREA)
+
+    # --- inbound -----------------------------------------------------------------------
+    def _may(self, link, target_system, target_component):
+        if not self.ep.for_us(target_system, target_component):
+            return False
+        if self.ep.allows(link):
+            return True
+        self.refused += 1
+        self.ep.statustext(WARNING, b"Geography: GCS not in control")
+        return False
+
+    def _on_set_origin(self, link, p):
+        if not self._may(link, p[12], 0):
+            return
+        if not _latitude_ok(p, 0):
+            self.refused += 1
+            self.ep.statustext(WARNING, b"Origin refused: latitude out of range")
+            return
+        copy(self._file, p, 0 << 10 | 2, 12)
+        self._file[0] |= _HAS_ORIGIN
+        self.origin_set = True
+        self._save()
+        self._to_all(self.send_origin)
+
+    def _on_set_area(self, link, p):
+        if not self._may(link, p[24], p[25]):
+            return
+        if _zeros(p, 24):
+            self._file[0] &= ~_HAS_AREA & 0xFF
+            self.area_set = False
+        elif not self._bounds_from(p, 0, p[26]):
+            self.refused += 1
+            self.ep.statustext(WARNING, b"Allowed area refused: bad corner")
+            return
+        else:
+            copy(self._file, p, 0 << 10 | 14, 24)
+            self._file[1] = p[26]
+            self._file[0] |= _HAS_AREA
+            self.area_set = True
+            self.area_local = p[26] in LOCAL_FRAMES
+        self._save()
+        self._to_all(self.send_area)
+
+    def _on_state_correction(self, link, p):
+        if self.on_state_correction is not None:
+            self.on_state_correction(link, p)
+
+    def _to_all(self, producer):
+        i = 0
+        while i < len(self.ep.links):
+            producer(self.ep.links[i])
+            i += 1
+
+    # --- the bounds --------------------------------------------------------------------
+    def _bounds_from(self, p, o, frame):
+        """The six float32 at p[o:] (p1x, p1y, p1z, p2x, p2y, p2z) as int32 bounds ->
+        False for NaN, infinities, values beyond int32, latitudes beyond +-90."""
+        t = self._tmp
+        copy(t, p, o << 10, 24)
+        local = frame in LOCAL_FRAMES
+        for i in (0, 4, 12, 16):
+            if not fix(t, i, local):
+                return False
+        if not fix(t, 8, True) or not fix(t, 20, True):
+            return False
+        if not local and not (_latitude_ok(t, 0) and _latitude_ok(t, 12)):
+            return False
+        b = self._bounds
+        _order(b, _XMIN, t, 0, 12)
+        _order(b, _YMIN, t, 4, 16)
+        _order(b, _ZMIN, t, 8, 20)
+        return True
+
+    # --- storage -----------------------------------------------------------------------
+    def _load(self):
+        storage = getattr(self.ep, "storage", None)
+        if storage is None or not storage.exists(_FILE):
+            return
+        try:
+            with storage.open(_FILE) as f:
+                data = f.read()
+        except OSError:
+            data = b""
+        if len(data) != _FILE_LEN or crc16(data, 0, 38, 0xFFFF) != data[38] | data[39] << 8:
+            self.ep.statustext(WARNING, b"Origin and allowed area corrupt: cleared")
+            return
+        copy(self._file, data, 0, _FILE_LEN)
+        self.origin_set = bool(data[0] & _HAS_ORIGIN)
+        if data[0] & _HAS_AREA and self._bounds_from(data, 14, data[1]):
+            self.area_set = True
+            self.area_local = data[1] in LOCAL_FRAMES
+        else:
+            self._file[0] &= _HAS_ORIGIN
+
+    def _save(self):
+        storage = getattr(self.ep, "storage", None)
+        if storage is None:
+            return
+        data = self._file
+        crc = crc16(data, 0, 38, 0xFFFF)
+        data[38] = crc & 0xFF
+        data[39] = crc >> 8
+        try:
+            f = storage.open_new(_FILE, _FILE_LEN)
+            f.write(data)
+            f.close()
+            storage.commit(_FILE)
+        except OSError:
+            self.ep.statustext(WARNING, b"Origin and allowed area not saved")
+
+
+# Helpers of few locals (a frame state past about 11 words comes from the heap).
+def _between(b, o, hi, lo):
+    """bounds b[o] (min) <= hi:lo <= b[o + 4] (max)."""
+    return i32_cmp(b, o, hi, lo) <= 0 and i32_cmp(b, o + 4, hi, lo) >= 0
+
+
+def _inside(b, o, v, vo):
+    """The int32 at v[vo] within the bounds b[o], b[o + 4]."""
+    hi = v[vo + 2] | v[vo + 3] << 8
+    if hi & 0x8000:
+        hi -= 0x10000
+    return _between(b, o, hi, v[vo] | v[vo + 1] << 8)
+
+
+def _order(b, o, t, i, j):
+    """b[o] = the smaller of the int32 t[i], t[j]; b[o + 4] the larger."""
+    hi = t[j + 2] | t[j + 3] << 8
+    if hi & 0x8000:
+        hi -= 0x10000
+    if i32_cmp(t, i, hi, t[j] | t[j + 1] << 8) > 0:
+        i, j = j, i
+    copy(b, t, i << 10 | o, 4)
+    copy(b, t, j << 10 | o + 4, 4)
+
+
+def _latitude_ok(p, o):
+    # -90e7 <= lat <= 90e7, by halves (see mission_items)
+    return i32_cmp(p, o, 13732, 59648) <= 0 and i32_cmp(p, o, -13733, 5888) >= 0
+
+
+def _unset(rec, o):
+    return rec[o] == 0xFF and rec[o + 1] == 0xFF and rec[o + 2] == 0xFF and rec[o + 3] == 0x7F
+
+
+def _zeros(p, n):
+    i = 0
+    while i < n:
+        if p[i]:
+            return False
+        i += 1
+    return True
+
+
+def create(ep):
+    return ep.add(Geography())

@@ -1,0 +1,182 @@
+"""The seed's remaining MAV_CMDs, as immediate commands (COMMAND_LONG / COMMAND_INT).
+
+    OVERRIDE_GOTO (252)     param1 0 MAV_GOTO_DO_HOLD / 1 MAV_GOTO_DO_CONTINUE; param2
+                            2 hold where the vehicle is / 3 at the position param5-7
+                            (frame param3, yaw param4). Hold: the board's LOITER mode
+                            (the mission runner pauses, `held` is True); continue: back
+                            to AUTO, the mission goes on where it stopped. A position
+                            outside the allowed area (services/geography.py) is DENIED;
+                            one inside goes to the application: on_goto(cmd) ->
+                            MAV_RESULT (default UNSUPPORTED: flying to a point is the
+                            application's guided flight).
+    NAV_ROI (80)            param1 MAV_ROI (0 none, 1 next waypoint, 2 waypoint param2,
+                            3 location param5-7, 4 target param3): kept as `roi`
+                            (mode, param2, param3, x, y, z) and handed to on_roi(cmd)
+                            if the application has it; ACCEPTED; a mode beyond 4 DENIED.
+    NAV_PATHPLANNING (81)   the application's path planner: on_pathplanning(cmd);
+                            default UNSUPPORTED (no planner on board).
+    DO_CONTROL_VIDEO (200)  the application's camera: on_video(cmd); default
+                            UNSUPPORTED (no camera).
+    CONDITION_DELAY, _CHANGE_ALT, _DISTANCE, _YAW (112-115)
+                            mission items: the runner hands them to the application
+                            as they become current (services/mission_runner.py; the
+                            simulator flies them). As an immediate command there is no
+                            mission step to hold, so UNSUPPORTED, with a STATUSTEXT.
+    NAV_LAST (95), CONDITION_LAST (159), DO_LAST (240)
+                            markers that bound the NAV / CONDITION / DO id ranges, no
+                            commands: UNSUPPORTED, with a STATUSTEXT.
+Every command here that changes the vehicle needs the sender in control (operator
+control): else DENIED with a STATUSTEXT. REASONS gives the table's words for the
+refused ones (host_tools/seed_coverage.py reads it).
+"""
+from ..compat import const
+from .statustext import WARNING
+
+_ACCEPTED = const(0)
+_DENIED = const(2)
+_UNSUPPORTED = const(3)
+
+_CMD_NAV_ROI = const(80)
+_CMD_NAV_PATHPLANNING = const(81)
+_CMD_NAV_LAST = const(95)
+_CMD_CONDITION_LAST = const(159)
+_CMD_DO_CONTROL_VIDEO = const(200)
+_CMD_DO_LAST = const(240)
+_CMD_OVERRIDE_GOTO = const(252)
+_GOTO_DO_HOLD = const(0)
+_GOTO_DO_CONTINUE = const(1)
+_GOTO_HOLD_AT_CURRENT = const(2)
+_GOTO_HOLD_AT_SPECIFIED = const(3)
+
+MISSION_ONLY = (112, 113, 114, 115)
+MARKERS = (_CMD_NAV_LAST, _CMD_CONDITION_LAST, _CMD_DO_LAST)
+REASONS = {
+    _CMD_NAV_LAST: "a marker (end of the NAV ids), not a command",
+    _CMD_CONDITION_LAST: "a marker (end of the CONDITION ids), not a command",
+    _CMD_DO_LAST: "a marker (end of the DO ids), not a command",
+}
+for _c in MISSION_ONLY:
+    REASONS[_c] = "a mission item (the runner and the simulator carry it out); no mission step to hold as a command"
+
+
+class SeedCommands:
+    NAME = "seed_commands"
+    CLOCK = False
+
+    def __init__(self):
+        self.on_goto = None
+        self.on_roi = None
+        self.on_pathplanning = None
+        self.on_video = None
+        self.roi = None
+        self.held = False
+
+    def attach(self, ep):
+        self.ep = ep
+        # A service listed before this one that handles a command keeps it.
+        for cmd, handler in ((_CMD_OVERRIDE_GOTO, self._goto), (_CMD_NAV_ROI, self._roi),
+                             (_CMD_NAV_PATHPLANNING, self._pathplanning),
+                             (_CMD_DO_CONTROL_VIDEO, self._video)):
+            if cmd not in ep.commands:
+                ep.commands[cmd] = handler
+        for cmd in MISSION_ONLY:
+            if cmd not in ep.commands:
+                ep.commands[cmd] = self._mission_only
+        for cmd in MARKERS:
+            ep.commands[cmd] = self._marker
+
+    def _allowed(self, cmd):
+        if self.ep.allows(cmd.link):
+            return True
+        self.ep.statustext(WARNING, b"Command: GCS not in control")
+        return False
+
+    def _goto(self, cmd):
+        if not cmd.finite(1) or cmd.int(1) not in (_GOTO_DO_HOLD, _GOTO_DO_CONTINUE):
+            return _DENIED
+        if not self._allowed(cmd):
+            return _DENIED
+        status = self.ep.services.get("status")
+        if cmd.int(1) == _GOTO_DO_CONTINUE:
+            self.held = False
+            return self._mode(status, "AUTO", True)
+        where = cmd.int(2) if cmd.finite(2) else _GOTO_HOLD_AT_CURRENT
+        if where == _GOTO_HOLD_AT_SPECIFIED:
+            if not self._inside(cmd):
+                self.ep.statustext(WARNING, b"Goto: outside the allowed area")
+                return _DENIED
+            if self.on_goto is None:
+                self.ep.statustext(WARNING, b"Goto: no guided flight to a position")
+                return _UNSUPPORTED
+            return self.on_goto(cmd)
+        if where != _GOTO_HOLD_AT_CURRENT:
+            return _DENIED
+        self.held = True
+        return self._mode(status, "LOITER", False)
+
+    def _mode(self, status, name, run):
+        # The board's mode for it, where it has one; else the mission runner alone.
+        if status is not None and getattr(status, "modes", None) is not None and status.modes.by_name(name) >= 0:
+            return status.set_flight_mode(name)
+        missions = self.ep.services.get("missions")
+        runner = getattr(missions, "runner", None)
+        if runner is None:
+            return _UNSUPPORTED
+        if run:
+            runner.run()
+        else:
+            runner.pause()
+        return _ACCEPTED
+
+    def _inside(self, cmd):
+        geo = self.ep.services.get("geography")
+        if geo is None or not geo.area_set:
+            return True
+        frame = cmd.int(3) if cmd.finite(3) else 0
+        if cmd.is_int:
+            frame = cmd.frame
+        if frame in (1, 4, 7, 8, 9):
+            return geo.allows_local(cmd.float(5), cmd.float(6), cmd.float(7) if cmd.finite(7) else None)
+        lat = int(cmd.float(5) * 1e7) if not cmd.is_int else cmd.int(5)
+        lon = int(cmd.float(6) * 1e7) if not cmd.is_int else cmd.int(6)
+        alt = int(cmd.float(7) * 1000) if cmd.finite(7) else None
+        return geo.allows(lat, lon, alt)
+
+    def _roi(self, cmd):
+        if not cmd.finite(1) or not 0 <= cmd.int(1) <= 4:
+            return _DENIED
+        if not self._allowed(cmd):
+            return _DENIED
+        self.roi = (cmd.int(1), cmd.int(2) if cmd.finite(2) else 0, cmd.int(3) if cmd.finite(3) else 0,
+                    cmd.float(5), cmd.float(6), cmd.float(7))
+        if self.on_roi is not None:
+            return self.on_roi(cmd)
+        return _ACCEPTED
+
+    def _pathplanning(self, cmd):
+        if not self._allowed(cmd):
+            return _DENIED
+        if self.on_pathplanning is None:
+            self.ep.statustext(WARNING, b"Path planning: no planner on board")
+            return _UNSUPPORTED
+        return self.on_pathplanning(cmd)
+
+    def _video(self, cmd):
+        if not self._allowed(cmd):
+            return _DENIED
+        if self.on_video is None:
+            self.ep.statustext(WARNING, b"Video: no camera on board")
+            return _UNSUPPORTED
+        return self.on_video(cmd)
+
+    def _mission_only(self, cmd):
+        self.ep.statustext(WARNING, b"CONDITION_*: a mission item, not a command")
+        return _UNSUPPORTED
+
+    def _marker(self, cmd):
+        self.ep.statustext(WARNING, b"*_LAST: a marker, not a command")
+        return _UNSUPPORTED
+
+
+def create(ep):
+    return ep.add(SeedCommands())

@@ -1,0 +1,247 @@
+"""Relays and servos: the seed's DO_SET_RELAY / DO_REPEAT_RELAY / DO_SET_SERVO /
+DO_REPEAT_SERVO drive a board's relay and servo table.
+
+    DO_SET_RELAY (181)     param1 relay (0..RELAYS-1), param2 1 on / 0 off
+    DO_REPEAT_RELAY (182)  param1 relay, param2 cycles, param3 cycle time (s): the relay
+                           is toggled, half a cycle at a time, then left as it was
+    DO_SET_SERVO (183)     param1 servo output (SERVO_CHANNELS), param2 pulse width (us)
+    DO_REPEAT_SERVO (184)  param1 servo, param2 pulse width, param3 cycles, param4 cycle
+                           time (s): between that width and SERVO_NOMINAL, then nominal
+A repeat runs in tick(), never blocking; one relay repeat and one servo repeat at a time
+(a new one replaces the one running, and a SET of the same output stops it). The
+sender must be in control (operator control); outputs out of the table, widths out of
+SERVO_RANGE, cycle counts below 1 or times not above 0 are DENIED, with a STATUSTEXT.
+
+Board settings: RELAYS (count, default 0: no relays), SERVO_CHANNELS ((first, last)
+output numbers the table drives, default None: no servos), SERVO_NOMINAL (us, 1500),
+SERVO_RANGE ((min, max) us, (800, 2200)), and the profile's set_relay(n, on) and
+set_servo(n, us), if it has them, for the hardware. The table is there to read
+(`relays`, a bit a relay; `servo(n)`); where telemetry is on (streams), the relays go out
+as NAMED_VALUE_INT "RELAYS" (a bit each) and the servo table in SERVO_OUTPUT_RAW, over
+what the application writes there (the unix vehicle's motors are outputs 1-4, its table
+5-16; the seed's SERVO_OUTPUT_RAW has 8 outputs, so there only 5-8 show).
+"""
+from ..compat import const, ticks_diff
+from .statustext import WARNING
+
+_CMD_DO_SET_RELAY = const(181)
+_CMD_DO_REPEAT_RELAY = const(182)
+_CMD_DO_SET_SERVO = const(183)
+_CMD_DO_REPEAT_SERVO = const(184)
+_ACCEPTED = const(0)
+_DENIED = const(2)
+_MSG_SERVO_OUTPUT_RAW = const(36)
+_RELAYS_NAME = b"RELAYS"
+
+
+class Servos:
+    NAME = "servos"
+
+    def __init__(self, relays=0, channels=None, nominal=1500, limits=(800, 2200), board=None):
+        self.relay_count = relays
+        self.first, self.last = channels or (1, 0)
+        self.nominal = nominal
+        self.low, self.high = limits
+        self.relays = 0
+        self._servos = bytearray(2 * max(0, self.last - self.first + 1))  # us, u16 each
+        self._set_relay = getattr(board, "set_relay", None)
+        self._set_servo = getattr(board, "set_servo", None)
+        # The repeats: output, half-cycles left, half a cycle (ms), when the next is due;
+        # the servo's width
+        self.relay_repeat = [-1, 0, 0, 0]
+        self.servo_repeat = [-1, 0, 0, 0, 0]
+        self.tm = None
+        self._write_servo = None
+
+    def attach(self, ep):
+        self.ep = ep
+        for cmd, handler in ((_CMD_DO_SET_RELAY, self._cmd_set_relay),
+                             (_CMD_DO_REPEAT_RELAY, self._cmd_repeat_relay),
+                             (_CMD_DO_SET_SERVO, self._cmd_set_servo),
+                             (_CMD_DO_REPEAT_SERVO, self._cmd_repeat_servo)):
+            ep.commands[cmd] = handler
+        tm = getattr(ep, "telemetry", None)
+        if tm is not None and tm._servo is not None:
+            # Whatever the application writes to SERVO_OUTPUT_RAW, the table goes over it.
+            self.tm = tm
+            self._write_servo = tm.servo_output
+            tm.servo_output = self._servo_output
+        for i in range(self.first, self.last + 1):
+            self._put(i, self.nominal)
+
+    # --- the table ---------------------------------------------------------------------
+    def servo(self, n):
+        """The pulse width (us) of servo output n, None outside the table."""
+        if n < self.first or n > self.last:
+            return None
+        o = (n - self.first) * 2
+        return self._servos[o] | self._servos[o + 1] << 8
+
+    def set_relay(self, n, on):
+        if on:
+            self.relays |= 1 << n
+        else:
+            self.relays &= ~(1 << n)
+        if self._set_relay is not None:
+            self._set_relay(n, on)
+        if self.tm is not None and self.tm._named_int is not None:
+            self.tm.named_value_int(_RELAYS_NAME, self.relays)
+
+    def set_servo(self, n, us):
+        self._put(n, us)
+        if self._set_servo is not None:
+            self._set_servo(n, us)
+        self._overlay()
+
+    def _put(self, n, us):
+        o = (n - self.first) * 2
+        self._servos[o] = us & 0xFF
+        self._servos[o + 1] = us >> 8
+
+    def _servo_output(self, outputs, port=0):
+        self._write_servo(outputs, port)
+        self._overlay()
+
+    def _overlay(self):
+        # Outputs 1-8 at payload offset 4, 9-16 (extensions) at 21, u16 each.
+        if self.tm is None:
+            return
+        s = self.tm._servo
+        n = self.first
+        while n <= self.last:
+            if n <= 8:
+                self._copy_to(s.buf, 4 + (n - 1) * 2, n)
+            elif n <= 16 and s.ext is not None:
+                self._copy_to(s.buf, 21 + (n - 9) * 2, n)
+            n += 1
+        if not s.written:
+            self.tm.clock.stamp_us32(s.buf, 0)
+            s.written = True
+
+    def _copy_to(self, buf, o, n):
+        i = (n - self.first) * 2
+        buf[o] = self._servos[i]
+        buf[o + 1] = self._servos[i + 1]
+
+    # --- commands ----------------------------------------------------------------------
+    def _allowed(self, cmd):
+        if self.ep.allows(cmd.link):
+            return True
+        self.ep.statustext(WARNING, b"Servo/relay: GCS not in control")
+        return False
+
+    def _refuse(self, text):
+        self.ep.statustext(WARNING, text)
+        return _DENIED
+
+    def _relay_of(self, cmd):
+        if not cmd.finite(1) or not 0 <= cmd.int(1) < self.relay_count:
+            return -1
+        return cmd.int(1)
+
+    def _servo_of(self, cmd):
+        if not cmd.finite(1) or not self.first <= cmd.int(1) <= self.last:
+            return -1
+        if not cmd.finite(2) or not self.low <= cmd.int(2) <= self.high:
+            return -2
+        return cmd.int(1)
+
+    def _cmd_set_relay(self, cmd):
+        n = self._relay_of(cmd)
+        if n < 0 or not cmd.finite(2) or cmd.int(2) not in (0, 1):
+            return self._refuse(b"Relay: no such relay or setting")
+        if not self._allowed(cmd):
+            return _DENIED
+        if self.relay_repeat[0] == n:
+            self.relay_repeat[0] = -1
+        self.set_relay(n, cmd.int(2) == 1)
+        return _ACCEPTED
+
+    def _cmd_repeat_relay(self, cmd):
+        n = self._relay_of(cmd)
+        if n < 0:
+            return self._refuse(b"Relay: no such relay")
+        half = _half_cycle_ms(cmd, 2, 3)
+        if half <= 0:
+            return self._refuse(b"Relay repeat: bad cycle count or time")
+        if not self._allowed(cmd):
+            return _DENIED
+        r = self.relay_repeat
+        r[0] = n
+        r[1] = cmd.int(2) * 2
+        r[2] = half
+        r[3] = self.ep.now
+        self._relay_step()
+        return _ACCEPTED
+
+    def _cmd_set_servo(self, cmd):
+        n = self._servo_of(cmd)
+        if n < 0:
+            return self._refuse(b"Servo: no such output or width out of range")
+        if not self._allowed(cmd):
+            return _DENIED
+        if self.servo_repeat[0] == n:
+            self.servo_repeat[0] = -1
+        self.set_servo(n, cmd.int(2))
+        return _ACCEPTED
+
+    def _cmd_repeat_servo(self, cmd):
+        n = self._servo_of(cmd)
+        if n < 0:
+            return self._refuse(b"Servo: no such output or width out of range")
+        half = _half_cycle_ms(cmd, 3, 4)
+        if half <= 0:
+            return self._refuse(b"Servo repeat: bad cycle count or time")
+        if not self._allowed(cmd):
+            return _DENIED
+        r = self.servo_repeat
+        r[0] = n
+        r[1] = cmd.int(3) * 2
+        r[2] = half
+        r[3] = self.ep.now
+        r[4] = cmd.int(2)
+        self._servo_step()
+        return _ACCEPTED
+
+    # --- repeats -----------------------------------------------------------------------
+    def tick(self, now):
+        r = self.relay_repeat
+        if r[0] >= 0 and ticks_diff(now, r[3]) >= 0:
+            self._relay_step()
+        r = self.servo_repeat
+        if r[0] >= 0 and ticks_diff(now, r[3]) >= 0:
+            self._servo_step()
+
+    def _relay_step(self):
+        r = self.relay_repeat
+        self.set_relay(r[0], not self.relays & (1 << r[0]))
+        r[1] -= 1
+        r[3] += r[2]
+        if r[1] <= 0:
+            r[0] = -1
+
+    def _servo_step(self):
+        r = self.servo_repeat
+        r[1] -= 1
+        # Odd half-cycles left: at the commanded width; even: back at nominal.
+        self.set_servo(r[0], r[4] if r[1] & 1 else self.nominal)
+        r[3] += r[2]
+        if r[1] <= 0:
+            r[0] = -1
+
+
+def _half_cycle_ms(cmd, count, time):
+    """Half a cycle in ms from the cycle count and cycle time (s) parameters; 0 if bad."""
+    if not cmd.finite(count) or not cmd.finite(time) or cmd.int(count) < 1:
+        return 0
+    if cmd.int(count) > 10000:
+        return 0
+    ms = int(cmd.float(time) * 500)
+    return ms if 0 < ms <= 3600000 else 0
+
+
+def create(ep):
+    board = getattr(ep, "board", None)
+    return ep.add(Servos(ep.setting("RELAYS", 0), getattr(board, "SERVO_CHANNELS", None),
+                         ep.setting("SERVO_NOMINAL", 1500),
+                         getattr(board, "SERVO_RANGE", (800, 2200)), board))

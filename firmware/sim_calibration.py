@@ -1,0 +1,108 @@
+"""The simulated vehicle's calibration (mavstack/services/calibration.py's handler).
+
+PREFLIGHT_CALIBRATION: the sensors asked for (param1 gyro, 2 magnetometer, 3 ground
+pressure, 4 radio, 5 accelerometer, 6 compass/motor, 7 airspeed; 1 each) are
+"calibrated" one after the other over SIM_CAL_MS each: the command answers
+IN_PROGRESS, a STATUSTEXT reports each step ("Calibrating gyro: 50%"), and the final
+COMMAND_ACK is ACCEPTED. Nothing asked for is DENIED. A calibration under way is
+cancelled, FAILED, if the vehicle is armed meanwhile (the service refuses to start one
+armed). PREFLIGHT_SET_SENSOR_OFFSETS: sensor 0-6 takes the offsets (kept in
+`offsets[sensor]`, reported by STATUSTEXT), any other is DENIED.
+The board composes it with the simulator (boards/unix.py application(): compose()),
+which also gives DO_CONTROL_VIDEO the simulator's camera.
+"""
+from mavstack.compat import ticks_diff
+
+_ACCEPTED = 0
+_DENIED = 2
+_FAILED = 4
+_IN_PROGRESS = 5
+_INFO = 6
+_WARNING = 4
+SENSORS = ("gyro", "magnetometer", "ground pressure", "radio", "accelerometer",
+           "compass/motor", "airspeed")
+OFFSET_SENSORS = 7
+
+
+class SimCalibration:
+    NAME = "sim_calibration"
+    CLOCK = False
+
+    def __init__(self, step_ms=300):
+        self.step_ms = step_ms
+        self.offsets = {}
+        self.calibrated = []  # names of the sensors calibrated, in order
+        self._pending = None
+        self._todo = []
+        self._next = 0
+        self._half = False
+
+    def attach(self, ep):
+        self.ep = ep
+        self.step_ms = ep.setting("SIM_CAL_MS", self.step_ms)
+        cal = ep.services.get("calibration")
+        if cal is not None:
+            cal.handler = self.handle
+
+    def handle(self, cmd):
+        if cmd.command == 242:
+            sensor = cmd.int(1) if cmd.finite(1) else -1
+            if not 0 <= sensor < OFFSET_SENSORS:
+                self.ep.statustext(_WARNING, "Offsets refused: no sensor %d" % sensor)
+                return _DENIED
+            self.offsets[sensor] = tuple(cmd.float(i) if cmd.finite(i) else 0.0 for i in range(2, 8))
+            self.ep.statustext(_INFO, "Offsets set: sensor %d" % sensor)
+            return _ACCEPTED
+        todo = [name for i, name in enumerate(SENSORS) if cmd.finite(i + 1) and cmd.int(i + 1) == 1]
+        if not todo:
+            self.ep.statustext(_WARNING, "Calibration: no sensor asked for")
+            return _DENIED
+        if self._pending is not None:
+            self._pending.done(_FAILED)  # a new request replaces the one under way
+        self._todo = todo
+        self._pending = cmd.defer()
+        self._next = self.ep.now
+        self._half = False
+        self.ep.statustext(_INFO, "Calibrating %s: 0%%" % todo[0])
+        return _IN_PROGRESS
+
+    def tick(self, now):
+        if self._pending is None or ticks_diff(now, self._next) < self.step_ms // 2:
+            return
+        self._next = now
+        status = self.ep.services.get("status")
+        if status is not None and status.armed:
+            self.ep.statustext(_WARNING, "Calibration cancelled: armed")
+            self._pending.done(_FAILED)
+            self._pending = None
+            return
+        name = self._todo[0]
+        if not self._half:
+            self._half = True
+            self.ep.statustext(_INFO, "Calibrating %s: 50%%" % name)
+            return
+        self._half = False
+        self.calibrated.append(self._todo.pop(0))
+        self.ep.statustext(_INFO, "Calibrating %s: 100%%" % name)
+        if self._todo:
+            return
+        self.ep.statustext(_INFO, "Calibration done")
+        self._pending.done(_ACCEPTED)
+        self._pending = None
+
+
+def compose(ep, sim=None):
+    """Attach to an endpoint that has the calibration service (the simulator's board);
+    the simulator's camera (sim.video) answers DO_CONTROL_VIDEO (services/seed_commands.py):
+    param2 transmission or param4 recording above 0 turns it on, both 0 off."""
+    seed = ep.services.get("seed_commands")
+    if seed is not None and sim is not None and hasattr(sim, "video"):
+        def video(cmd):
+            on = any(cmd.finite(i) and cmd.int(i) > 0 for i in (2, 4))
+            sim.video = on
+            ep.statustext(_INFO, "Video on" if on else "Video off")
+            return _ACCEPTED
+        seed.on_video = video
+    if "calibration" in ep.services:
+        return ep.add(SimCalibration())
+    return None
