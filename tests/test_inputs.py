@@ -215,3 +215,66 @@ def test_pilot_offboard_setpoints(bench):
     assert kind == "vel" and (vn, ve, vd) == (1.0, -2.0, 0.5) and yr == pytest.approx(0.3)
     bench.run(1100)
     assert sim.reasons == ["Offboard setpoints lost"]
+
+
+def test_rc_override_channels_as_mavlink_defines_them(bench):
+    rc = bench.ep.services["inputs"].rc
+    g = bench.gcs()
+    rest = (0,) * 8  # chan11..18: 0 leaves them
+    bench.send(g.frame(70, 1100, 1200, 1300, 1400, 1500, 1600, 1700, 1800, 1, 1, 1900, 2000, *rest))
+    bench.run(5)
+    assert [rc.channel(n) for n in range(1, 13)] == [1100, 1200, 1300, 1400, 1500, 1600, 1700, 1800, 1900, 2000, 0, 0]
+    # UINT16_MAX leaves channels 1-8 as they are, 0 releases them; for 9-18, 0 and
+    # UINT16_MAX leave them and UINT16_MAX - 1 releases.
+    bench.send(g.frame(70, 65535, 0, 1350, 65535, 65535, 65535, 65535, 65535, 1, 1, 0, 65534, *rest))
+    bench.run(5)
+    assert [rc.channel(n) for n in (1, 2, 3, 9, 10)] == [1100, 0, 1350, 1900, 0]
+    assert not rc.overridden(2) and rc.overridden(1)
+    assert rc.channel(0) == 0 and rc.channel(19) == 0
+    # Not set again for RC_OVERRIDE_TIMEOUT_MS (3000 here): back to the radio.
+    bench.run(2000)
+    bench.send(g.frame(70, 65535, 65535, 1360, 65535, 65535, 65535, 65535, 65535, 1, 1, 0, 0, *rest))
+    bench.run(1100)
+    assert rc.channel(1) == 0 and rc.channel(3) == 1360 and rc.channel(9) == 0
+    # Another vehicle's override changes nothing.
+    bench.send(g.frame(70, 1999, 1999, 1999, 1999, 0, 0, 0, 0, 7, 1, 0, 0, *rest))
+    bench.run(5)
+    assert rc.channel(1) == 0 and rc.channel(3) == 1360
+
+
+def test_manual_control_fields_sender_age_and_callback(bench):
+    inputs = bench.ep.services["inputs"]
+    m = inputs.manual
+    arrived = []
+    assert inputs.on(inputs_module().MANUAL, arrived.append)
+    assert m.age_ms() == 0x3FFFFFFF and not m.fresh()
+    bench.send(bench.gcs(42, 7).frame(69, -1000, 1000, 250, -500, 0x8001, 1, 0x4002, 3, 100, -100,
+                                      1, 2, 3, 4, 5, -6))
+    bench.run(10)
+    assert arrived == [m] and (m.sysid, m.compid, m.link) == (42, 7, 0)
+    assert (m.x(), m.y(), m.z(), m.r(), m.buttons()) == (-1000, 1000, 250, -500, 0x8001)
+    assert (m.buttons2(), m.extensions(), m.s(), m.t()) == (0x4002, 3, 100, -100)
+    assert [m.aux(n) for n in range(1, 7)] == [1, 2, 3, 4, 5, -6]
+    assert 0 <= m.age_ms() <= 10 and m.fresh()
+
+
+def inputs_module():
+    from mavstack.services import inputs
+
+    return inputs
+
+
+def test_milli_reads_floats_as_integers():
+    from mavstack.services.inputs_echo import put_f32_milli
+    from mavstack.services.inputs_record import milli
+
+    for f in (0.0, -0.0, 1.0, -1.0, 0.0005, -0.0015, 3.14159, 1048.5, -123456.789, 1e-9):
+        b = struct.pack("<f", f)
+        assert milli(b, 0) == round(struct.unpack("<f", b)[0] * 1000), f
+    assert milli(struct.pack("<f", float("nan")), 0) == 0
+    assert milli(struct.pack("<f", float("inf")), 0) == 0
+    assert milli(struct.pack("<f", 5e6), 0) == 2 ** 30 - 1 and milli(struct.pack("<f", -5e6), 0) == 1 - 2 ** 30
+    b = bytearray(4)
+    for n in (0, 1, -1, 250, -500, 1000, 32767, -1048575):
+        put_f32_milli(b, 0, n)
+        assert struct.unpack("<f", b)[0] == struct.unpack("<f", struct.pack("<f", n / 1000))[0], n
