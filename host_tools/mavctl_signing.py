@@ -22,7 +22,7 @@ from mavctl_errors import EXIT_OK, EXIT_REFUSED, Failure, usage
 
 EPOCH_2015 = 1420070400  # signing timestamps count 10 us units from 2015-01-01 UTC
 TRIES = 3
-WAIT_S = 2.0
+WAIT_S = 1.5  # per try: the vehicle answers at once, a radio may lose a frame
 LINK_ID = 0
 
 
@@ -132,7 +132,7 @@ def setup_signing(v, new_key, current_key):
 
 def check_vehicle(v, current_key):
     """Refuse early when the vehicle signs and no key for it was given."""
-    hb = v.recv(("HEARTBEAT",), 3.0)
+    hb = getattr(v, "heartbeat_msg", None) or v.recv(("HEARTBEAT",), 3.0)
     if hb is not None and frame_signed(hb) and current_key is None:
         raise usage("the vehicle signs its frames: give the key it has with --current "
                     "PASSPHRASE or --current-key-file FILE")

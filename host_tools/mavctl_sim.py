@@ -106,8 +106,7 @@ def run_sim(args):
         storage = temporary
     pair = PtyPair()
     env = dict(os.environ)
-    env["MICROPYPATH"] = os.pathsep.join([os.path.join(ROOT, "firmware"), os.path.join(ROOT, "boards"),
-                                          ".frozen"])
+    env["MICROPYPATH"] = os.pathsep.join(board_path() + [os.path.join(ROOT, "firmware"), ".frozen"])
     proc = None
     stopping = []
 
@@ -145,9 +144,16 @@ def run_sim(args):
             shutil.rmtree(temporary, ignore_errors=True)
 
 
+def board_path():
+    """Where board profiles are looked for: MICROPYPATH's folders (a profile of your own),
+    then the checkout's boards/."""
+    own = [d for d in os.environ.get("MICROPYPATH", "").split(os.pathsep) if d and d != ".frozen"]
+    return own + [os.path.join(ROOT, "boards")]
+
+
 def check_sim(args):
-    if not os.path.isfile(os.path.join(ROOT, "boards", args.board + ".py")):
-        raise usage("no board profile boards/%s.py" % args.board)
+    if not any(os.path.isfile(os.path.join(d, args.board + ".py")) for d in board_path()):
+        raise usage("no board profile %s.py in %s" % (args.board, os.pathsep.join(board_path())))
     for setting in args.set:
         if "=" not in setting:
             raise usage("--set KEY=VALUE, not %r" % setting)
@@ -156,7 +162,9 @@ def check_sim(args):
 def register(sub):
     p = sub.add_parser("sim", help="the simulated vehicle on a new pty pair: prints the device "
                        "to connect to; Ctrl-C stops it")
-    p.add_argument("--board", default="unix", help="board profile (default unix, the simulated quadcopter)")
+    p.add_argument("--board", default="unix",
+                   help="board profile (default unix, the simulated quadcopter); your own are "
+                   "found through MICROPYPATH")
     p.add_argument("--storage", metavar="DIR",
                    help="where parameters and missions persist (default: a temporary folder, "
                    "removed when the vehicle stops)")

@@ -1,0 +1,243 @@
+"""mavctl watch (the live view on a terminal and in a pipe, line output, --tlog read back by
+pymavlink's mavlogdump and mavutil) and mavctl signing (MAVProxy's key from a passphrase,
+key files, the current key, the links the board trusts), against the unix vehicle over UDP."""
+import hashlib
+import os
+import select
+import struct
+import subprocess
+import threading
+import time
+
+import pytest
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import common as mavlink
+
+from conftest import PYTHON, ROOT, free_udp_port, recv
+from mavctl_tools import MAVCTL, mavctl, mavctl_cli_run, ok, refused, signed_board
+from relay import LossyRelay
+
+RADIO = (51, 68)  # a SiK radio's system and component id
+
+
+class RadioRelay(LossyRelay):
+    """A lossy link whose radio reports RADIO_STATUS to the ground station twice a second."""
+
+    def __init__(self, vehicle_port, rate):
+        LossyRelay.__init__(self, vehicle_port, rate=rate, drop_only=True, seed=3)
+        self.mav = mavlink.MAVLink(None, srcSystem=RADIO[0], srcComponent=RADIO[1])
+        self._radio = threading.Thread(target=self._report, daemon=True)
+        self._radio.start()
+
+    def _report(self):
+        while not self._stop:
+            if self.gcs is not None:
+                # rssi, remrssi, txbuf, noise, remnoise, rxerrors, fixed
+                frame = self.mav.radio_status_encode(201, 187, 93, 41, 39, 7, 3).pack(self.mav)
+                self.send(self.gcs_sock, frame, self.gcs)
+            time.sleep(0.5)
+
+
+@pytest.fixture
+def gcs_link_port(vehicle):
+    """A vehicle sending (udpout) to a port each mavctl run listens on (udpin)."""
+
+    def start(**kw):
+        port = free_udp_port()
+        return vehicle(links=["udpout:127.0.0.1:%d" % port], **kw), "udpin:127.0.0.1:%d" % port
+
+    return start
+
+
+def view_blocks(out):
+    """The views a `watch --view` printed in a pipe, each as {first word: line}."""
+    blocks = []
+    for block in out.split("mavctl watch: ")[1:]:
+        lines = {}
+        for line in block.splitlines()[1:]:
+            if line and not line.startswith(" "):
+                lines.setdefault(line.split()[0], line)
+        blocks.append(lines)
+    return blocks
+
+
+def test_watch_view_in_a_pipe_shows_radio_and_measured_drops(vehicle):
+    v = vehicle()
+    relay = RadioRelay(v.port, rate=0.25)
+    try:
+        out = ok(mavctl("udpout:127.0.0.1:%d" % relay.port, "watch", "--view", "--seconds", "4"))
+    finally:
+        relay.close()
+    blocks = view_blocks(out)
+    assert len(blocks) >= 3, out  # once a second, and once at the end
+    last = blocks[-1]
+    assert "\x1b" not in out  # no terminal codes in a pipe
+    assert last["mode"].split()[1:3] == ["STABILIZE", "disarmed"], last["mode"]
+    assert "47.39" in last["position"] and "above home" in last["position"]
+    assert last["battery"].split()[2] == "V"
+    assert "3D fix" in last["gps"] and "12 satellites" in last["gps"]
+    assert "rssi 201/187" in last["radio"] and "noise 41/39" in last["radio"]
+    assert "rx errors 7" in last["radio"] and "fixed 3" in last["radio"]
+    # About a quarter of the vehicle's frames dropped by the relay; measured from sequence numbers.
+    overall = float(last["link"].split(",")[1].split("%")[0])
+    assert 12 <= overall <= 40, last["link"]
+    assert relay.stats["dropped"] > 0
+    assert last["MESSAGE"].split() == ["MESSAGE", "COUNT", "HZ"]
+    attitude = [line for line in out.splitlines() if line.startswith("ATTITUDE ")][-1]
+    assert 4 <= float(attitude.split()[2]) <= 10  # 10 Hz less a quarter
+    v.check_alive()
+
+
+def test_watch_live_view_on_a_terminal(vehicle):
+    """On a tty the view is drawn in place (cursor home, lines cleared), the cursor is
+    given back at the end; the vehicle's STATUSTEXT is among the last messages."""
+    port = free_udp_port()
+    v = vehicle(links=["udpout:127.0.0.1:%d" % port])
+    master, slave = os.openpty()
+    proc = subprocess.Popen([PYTHON, MAVCTL, "--connect", "udpin:127.0.0.1:%d" % port, "watch",
+                             "--seconds", "3"], cwd=ROOT, stdout=slave, stderr=subprocess.PIPE,
+                            env=dict(os.environ, COLUMNS="120", LINES="40"))
+    os.close(slave)
+    out = b""
+    deadline = time.time() + 60
+    while time.time() < deadline:
+        ready, _, _ = select.select([master], [], [], 0.5)
+        if ready:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # EIO: the other side has gone
+                break
+            if not chunk:
+                break
+            out += chunk
+        elif proc.poll() is not None:
+            break
+    os.close(master)
+    assert proc.wait(30) == 0, proc.stderr.read()
+    text = out.decode("utf-8", "replace")
+    assert text.count("\x1b[H") >= 3, text  # redrawn twice a second
+    assert "\x1b[K" in text and text.rstrip().endswith("\x1b[?25h")
+    last = text.split("\x1b[H")[-1]
+    assert "STABILIZE  disarmed" in last and "3D fix" in last
+    assert "GCS heard on udpout" in last  # a STATUSTEXT
+    assert "GLOBAL_POSITION_INT" in last  # the rate table
+    v.check_alive()
+
+
+def test_watch_lines_and_a_tlog_pymavlink_reads_back(gcs_link_port, tmp_path):
+    v, link = gcs_link_port()
+    tlog = tmp_path / "flight.tlog"
+    t0 = time.time()
+    out = ok(mavctl(link, "watch", "HEARTBEAT", "SYS_STATUS", "--seconds", "2.5", "--tlog", tlog))
+    t1 = time.time()
+    lines = out.splitlines()
+    assert sum(line.startswith("HEARTBEAT {type : 2,") for line in lines) >= 2
+    assert all(line.split()[0] in ("HEARTBEAT", "SYS_STATUS") for line in lines)
+    raw = tlog.read_bytes()
+    usec = struct.unpack(">Q", raw[:8])[0]
+    assert t0 - 1 <= usec / 1e6 <= t1 and raw[8] in (0xFD, 0xFE)  # big-endian us, then the frame
+    # mavutil reads it as a log: every message, not only those printed, and ours too.
+    log = mavutil.mavlink_connection(str(tlog))
+    kinds, stamps, ours = {}, [], 0
+    while True:
+        m = log.recv_match()
+        if m is None:
+            break
+        kinds[m.get_type()] = kinds.get(m.get_type(), 0) + 1
+        stamps.append(m._timestamp)
+        ours += m.get_srcSystem() == 255
+    assert kinds["HEARTBEAT"] >= 4 and kinds["ATTITUDE"] >= 15 and kinds["GLOBAL_POSITION_INT"] >= 8
+    assert ours >= 2 and stamps == sorted(stamps) and t0 - 1 <= stamps[0] and stamps[-1] <= t1
+    # pymavlink's mavlogdump, as a user runs it.
+    dump = subprocess.run([os.path.join(ROOT, ".venv", "bin", "mavlogdump.py"), "--types", "GPS_RAW_INT",
+                           str(tlog)], capture_output=True, text=True, timeout=60)
+    assert dump.returncode == 0, dump.stderr
+    assert sum("GPS_RAW_INT {" in line and "fix_type : 3" in line for line in dump.stdout.splitlines()) >= 3
+    # The rate table.
+    rates = ok(mavctl(link, "watch", "--rates", "--seconds", "2")).splitlines()
+    assert rates[0].split() == ["MESSAGE", "COUNT", "HZ"]
+    hz = {line.split()[0]: float(line.split()[2]) for line in rates[1:]}
+    assert 5 <= hz["ATTITUDE"] <= 12
+    v.check_alive()
+
+
+def test_watch_refusals(tmp_path):
+    port = free_udp_port()
+    link = "udpin:127.0.0.1:%d" % port
+    # Found wrong before anything is opened (nothing listens here).
+    refused(mavctl_cli_run(link, "watch", "--tlog", tmp_path / "no" / "dir.tlog"), 2, "--tlog")
+    refused(mavctl_cli_run(link, "watch", "NOT_A_MESSAGE"), 2, "unknown message")
+    refused(mavctl_cli_run(link, "--timeout", "1", "watch"), 5, "no HEARTBEAT")
+
+
+# --- signing ----------------------------------------------------------------------------
+
+def mavproxy_key(passphrase):
+    """The key MAVProxy's `signing setup PASSPHRASE` gives a vehicle (its own code)."""
+    from MAVProxy.modules.mavproxy_signing import SigningModule
+    return SigningModule.passphrase_to_key(None, passphrase)
+
+
+def signs_with(v, key, port=None, seconds=5.0):
+    """Does the vehicle sign with key? (a pymavlink station holding key hears its HEARTBEAT
+    signed and checked)."""
+    m = v.gcs(port=port, wait=False)
+    m.setup_signing(key, sign_outgoing=True)
+    deadline = time.time() + seconds
+    hb = None
+    while hb is None and time.time() < deadline:
+        m.mav.heartbeat_send(6, 8, 0, 0, 0)  # a udpin link answers who speaks to it
+        hb = recv(m, "HEARTBEAT", 0.5, lambda h: h.get_srcSystem() == 1)
+    m.close()
+    return hb is not None and hb._signed and m.mav.signing.goodsig_count > 0
+
+
+def test_signing_setup_and_clear_over_udp(vehicle, tmp_path):
+    v = vehicle(board="unix_signed", env={"MICROPYPATH": signed_board(tmp_path)})
+    link = "udpout:127.0.0.1:%d" % v.port
+    out = ok(mavctl(link, "signing", "setup", "correct horse"))
+    assert out.startswith("signing on: key %s" % mavproxy_key("correct horse")[:4].hex())
+    assert mavproxy_key("correct horse") == hashlib.sha256(b"correct horse").digest()
+    assert signs_with(v, mavproxy_key("correct horse"))
+    # Now the key is required: without it, and with a wrong one, refused, key unchanged.
+    refused(mavctl(link, "signing", "setup", "other"), 2, "--current")
+    refused(mavctl(link, "signing", "setup", "other", "--current", "wrong"), 1, "did not take")
+    assert signs_with(v, mavproxy_key("correct horse"))
+    # A new key from a file (64 hex digits), signed with the current one.
+    key = bytes(range(100, 132))
+    (tmp_path / "key.hex").write_text(key.hex() + "\n")
+    ok(mavctl(link, "signing", "setup", "--key-file", tmp_path / "key.hex", "--current", "correct horse"))
+    assert signs_with(v, key)
+    # Clear with the current key given as a raw 32-byte file: unsigned again.
+    (tmp_path / "key.bin").write_bytes(key)
+    assert "signing off" in ok(mavctl(link, "signing", "clear", "--current-key-file", tmp_path / "key.bin"))
+    m = v.gcs()
+    hb = recv(m, "HEARTBEAT", 5, lambda h: h.get_srcSystem() == 1)
+    assert hb is not None and not hb.get_msgbuf()[2] & 1
+    assert "SIM_SPEED" in ok(mavctl(link, "params", "get", "SIM_SPEED"))
+    v.check_alive()
+
+
+def test_signing_only_on_the_trusted_link(vehicle, tmp_path):
+    """A board that takes keys on its second link only: the first is refused (and the
+    vehicle stays unsigned), the second takes it."""
+    radio, usb = free_udp_port(), free_udp_port()
+    v = vehicle(board="unix_signed", env={"MICROPYPATH": signed_board(tmp_path, setup_links=(1,))},
+                links=["udpin:127.0.0.1:%d" % radio, "udpin:127.0.0.1:%d" % usb])
+    r = mavctl("udpout:127.0.0.1:%d" % radio, "signing", "setup", "secret")
+    refused(r, 1, "SIGNING_SETUP_LINKS")
+    assert not signs_with(v, mavproxy_key("secret"), port=radio, seconds=2.0)
+    ok(mavctl("udpout:127.0.0.1:%d" % usb, "signing", "setup", "secret"))
+    assert signs_with(v, mavproxy_key("secret"), port=radio)
+    v.check_alive()
+
+
+def test_signing_refusals(tmp_path):
+    link = "udpin:127.0.0.1:%d" % free_udp_port()
+    refused(mavctl(link, "signing", "setup"), 2, "PASSPHRASE or --key-file")
+    (tmp_path / "empty").write_text("\n")
+    refused(mavctl(link, "signing", "setup", "--key-file", tmp_path / "empty"), 2, "empty")
+    refused(mavctl(link, "signing", "setup", "a", "--key-file", tmp_path / "empty"), 2, "not both")
+    refused(mavctl(link, "signing", "setup", "--key-file", tmp_path / "missing"), 2, "missing")
+    refused(mavctl(link, "signing", "clear", "--current", ""), 2, "empty passphrase")
+    refused(mavctl_cli_run(link, "--timeout", "1", "signing", "setup", "x"), 5, "no HEARTBEAT")
