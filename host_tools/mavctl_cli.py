@@ -62,8 +62,8 @@ def taken(sub, name):
     return name in sub.choices
 
 
-def load_plugins(sub, names=PLUGINS):
-    for name in names:
+def load_plugins(sub, names=None):
+    for name in PLUGINS if names is None else names:
         try:
             module = importlib.import_module(name)
         except ModuleNotFoundError as e:

@@ -27,8 +27,8 @@ CONNECT_HELP = "udpout:HOST:PORT, udpin:ADDR:PORT, tcp:HOST:PORT or serial:DEVIC
 
 
 def parse_spec(spec):
-    """(pymavlink target, extra options) for a --connect spec; a bare /dev path is serial."""
-    if spec.startswith("/dev/") or spec.startswith("COM"):
+    """(pymavlink target, extra options) for a --connect spec; a bare device path is serial."""
+    if spec.startswith("/") or spec.startswith("COM"):
         spec = "serial:" + spec
     kind, _, rest = spec.partition(":")
     if kind == "serial":

@@ -9,15 +9,15 @@ import sys
 
 
 @contextlib.contextmanager
-def progress(what, total=None, stream=None):
+def progress(what, total=None, stream=None, delay=0.5):
     """A callable bar(done, total=None) that draws a bar on a terminal; a no-op elsewhere.
-    The bar appears only after half a second, so quick transfers stay quiet."""
+    The bar appears only after `delay` seconds, so quick transfers stay quiet."""
     stream = stream if stream is not None else sys.stderr
     if not getattr(stream, "isatty", lambda: False)():
         yield lambda done, total=None: None
         return
     from tqdm import tqdm
-    bar = tqdm(total=total, desc=what, unit="", file=stream, delay=0.5, leave=False,
+    bar = tqdm(total=total, desc=what, unit="", file=stream, delay=delay, leave=False,
                dynamic_ncols=True)
 
     def update(done, total=None):

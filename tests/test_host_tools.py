@@ -1,5 +1,5 @@
 """host_tools/flash.py builds the file tree a board gets (the unix vehicle runs from it),
-and host_tools/mavctl.py drives the real unix vehicle over UDP and over a serial line
+and mavctl (the command `make setup` installs) drives the real unix vehicle over UDP and over a serial line
 (two ptys joined by a relay thread, the way a USB radio pair joins two computers)."""
 import contextlib
 import io
@@ -17,7 +17,7 @@ import pytest
 from conftest import MICROPYTHON, PYTHON, ROOT, free_udp_port, recv, run_mpy
 
 FLASH = os.path.join(ROOT, "host_tools", "flash.py")
-MAVCTL = os.path.join(ROOT, "host_tools", "mavctl.py")
+MAVCTL = os.path.join(ROOT, ".venv", "bin", "mavctl")
 STACK = os.path.join(ROOT, "firmware", "mavstack")
 sys.path.insert(0, os.path.join(ROOT, "host_tools"))
 import flash as flash_tool  # noqa: E402
@@ -46,7 +46,7 @@ def flash(*args):
 
 def mavctl_cli(link, *args, timeout=60):
     """mavctl as the user runs it: a process, its exit status, no traceback."""
-    r = run([PYTHON, MAVCTL, "--connect", link] + list(args), timeout=timeout)
+    r = run([MAVCTL, "--connect", link] + list(args), timeout=timeout)
     assert "Traceback" not in r.stderr, r.stderr
     return r
 
@@ -326,9 +326,9 @@ def test_watch_over_udpout(vehicle):
 def test_usage_and_connection_errors(tmp_path):
     port = free_udp_port()
     r = mavctl_cli("udpin:127.0.0.1:%d" % port, "--timeout", "1", "params", "list")
-    assert r.returncode == 2 and "no HEARTBEAT" in r.stderr
+    assert r.returncode == 5 and "no HEARTBEAT" in r.stderr
     r = mavctl_cli("serial:%s:57600" % (tmp_path / "no-such-tty"), "arm")
-    assert r.returncode == 2 and "cannot open" in r.stderr
+    assert r.returncode == 3 and "no such port" in r.stderr
     r = mavctl_cli("bogus:1", "arm")
     assert r.returncode == 2 and "--connect" in r.stderr
     r = mavctl_cli("udpin:127.0.0.1:%d" % port, "params", "frobnicate")
