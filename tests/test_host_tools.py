@@ -1,6 +1,7 @@
 """host_tools/flash.py builds the file tree a board gets (the unix vehicle runs from it),
-and mavctl (the command `make setup` installs) drives the real unix vehicle over UDP and over a serial line
-(two ptys joined by a relay thread, the way a USB radio pair joins two computers)."""
+and mavctl (the command `make setup` installs) drives the real unix vehicle over UDP and
+over a serial line (two ptys joined by a relay thread, as a USB radio pair joins two
+computers)."""
 import contextlib
 import io
 import math
