@@ -341,3 +341,25 @@ def test_resent_requests_get_the_same_answer(vehicle, tmp_path):
     seq = raw.request(LIST, b"/", seq=0xFFFF)
     r = recv(raw.m, "FILE_TRANSFER_PROTOCOL", 5)
     assert r.payload[0] == 0 and r.payload[1] == 0
+
+
+def test_transfers_on_a_heap_locked_vehicle(vehicle, tmp_path):
+    # The heap locked once the vehicle is built (without the simulator, which allocates):
+    # reads, bursts and writes run locked, opening and listing open it for their moment.
+    st = storage_with(tmp_path, {"a.bin": os.urandom(5000)})
+    v = vehicle(storage=st, args=["--set", "heap_lock=1", "--set", "application=0"])
+    m = v.gcs()
+    ftp = mavftp(m)
+    assert {e.name for e in ftp.cmd_list(["/"]).directory_listing} == {"a.bin"}
+    assert get(ftp, "a.bin", tmp_path / "a.bin").error_code == 0
+    assert (tmp_path / "a.bin").read_bytes() == (st / "a.bin").read_bytes()
+    (tmp_path / "up.bin").write_bytes(os.urandom(7000))
+    assert put(ftp, tmp_path / "up.bin", "up.bin").error_code == 0
+    assert (st / "up.bin").read_bytes() == (tmp_path / "up.bin").read_bytes()
+    raw = Raw(m)
+    assert raw.ask(CRC32, b"up.bin")["data"] == struct.pack("<I", ardupilot_crc32((st / "up.bin").read_bytes()))
+    assert nak(raw.ask(OPEN_RO, b"../x")) == FAIL and nak(raw.ask(9, b"d")) == UNKNOWN_COMMAND
+    assert ftp.cmd_rm(["up.bin"]).error_code == 0
+    v.check_alive()
+    v.stop()
+    assert "MemoryError" not in v.output()

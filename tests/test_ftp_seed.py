@@ -160,6 +160,7 @@ def seed_vehicle(vehicle, tmp_path, seed):
             gcs.append(relay)
             port = relay.port
         g = SeedGcs(seed, port)
+        g.vehicle = v
         gcs.append(g)
         time.sleep(0.5)  # the vehicle up
         return st, g
@@ -234,3 +235,15 @@ def test_a_full_store_is_no_space(seed_vehicle):
     assert g.write(b"old.bin", b"n" * 1200) == OK  # replacing a file frees its own bytes
     assert (st / "old.bin").read_bytes() == b"n" * 1200
     assert not (st / "big.bin").exists() and not (st / "big.bin.new").exists()
+
+
+def test_on_a_heap_locked_vehicle(seed_vehicle):
+    data = os.urandom(2000)
+    st, g = seed_vehicle({"a.bin": data}, args=["--set", "heap_lock=1", "--set", "application=0"])
+    assert g.list(b"") == (OK, b"Fa.bin\t2000\n")
+    assert g.read(b"a.bin") == (OK, data)
+    assert g.write(b"b.bin", data[:999]) == OK and (st / "b.bin").read_bytes() == data[:999]
+    assert g.read(b"../a.bin") == (BAD_PATH, None) and g.read(b"params") == (NOT_PERMITTED, None)
+    g.vehicle.check_alive()
+    g.vehicle.stop()
+    assert "MemoryError" not in g.vehicle.output()
