@@ -146,6 +146,9 @@ def refused(what):
 
 
 def run_setup(v, args):
+    if args.passphrase is not None and len(args.passphrase.split()) != 1:
+        print("mavctl: note: MAVProxy's `signing key` takes one word; given this passphrase it "
+              "would derive another key", file=sys.stderr)
     check_vehicle(v, args.current_key)
     heard = setup_signing(v, args.key, args.current_key)
     if heard is None:

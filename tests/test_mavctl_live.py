@@ -241,3 +241,30 @@ def test_signing_refusals(tmp_path):
     refused(mavctl(link, "signing", "setup", "--key-file", tmp_path / "missing"), 2, "missing")
     refused(mavctl(link, "signing", "clear", "--current", ""), 2, "empty passphrase")
     refused(mavctl_cli_run(link, "--timeout", "1", "signing", "setup", "x"), 5, "no HEARTBEAT")
+
+
+def test_mavproxy_talks_to_the_vehicle_with_the_passphrase_mavctl_gave_it(vehicle, tmp_path):
+    """mavctl gives the key from a passphrase; MAVProxy given the same passphrase
+    (`signing key`; MAVProxy takes one word) sets a parameter the vehicle now takes only signed."""
+    from gcs_tools import MavProxy
+    v = vehicle(board="unix_signed", env={"MICROPYPATH": signed_board(tmp_path)})
+    ok(mavctl("udpout:127.0.0.1:%d" % v.port, "signing", "setup", "shared-secret"))
+    mp = MavProxy(v.port, tmp_path, "signing,param")
+    try:
+        mp.expect(r"online system 1|Detected vehicle 1:1")
+        mp.say("signing key shared-secret")
+        mp.say("param fetch")
+        mp.expect(r"Received \d+ parameters")
+        mp.say("param set SIM_SPEED 8.5")
+        check = v.gcs(wait=False)
+        check.setup_signing(mavproxy_key("shared-secret"), sign_outgoing=True)
+        deadline = time.time() + 20
+        value = None
+        while value != 8.5 and time.time() < deadline:
+            check.mav.param_request_read_send(1, 1, b"SIM_SPEED", -1)
+            p = recv(check, "PARAM_VALUE", 1.0, lambda p: p.param_id == "SIM_SPEED")
+            value = p.param_value if p is not None else value
+        assert value == 8.5
+    finally:
+        mp.close()
+    v.check_alive()
