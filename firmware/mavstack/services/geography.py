@@ -77,17 +77,21 @@ class Geography:
         self._z = bytearray(4)  # a mission item's z as an int32
         self._slot = None
         self.refused = 0
+        self._v1 = self._v2 = self._v3 = self._v4 = self._v5 = self._v6 = 0
 
     def attach(self, ep):
         self.ep = ep
+        # Bound methods made once: making one on a message's path would allocate.
+        self._origin_m = self.send_origin
+        self._area_m = self.send_area
         ep.on(_MSG_SET_GPS_GLOBAL_ORIGIN, self._on_set_origin)
         ep.on(_MSG_SAFETY_SET_ALLOWED_AREA, self._on_set_area)
         if ep.dialect.CRC_LEN.get(_MSG_STATE_CORRECTION) == _STATE_CORRECTION_CRC_LEN:
             ep.on(_MSG_STATE_CORRECTION, self._on_state_correction)
         if ep.has(_MSG_GPS_GLOBAL_ORIGIN):
-            ep.producers[_MSG_GPS_GLOBAL_ORIGIN] = self.send_origin
+            ep.producers[_MSG_GPS_GLOBAL_ORIGIN] = self._origin_m
         if ep.has(_MSG_SAFETY_ALLOWED_AREA):
-            ep.producers[_MSG_SAFETY_ALLOWED_AREA] = self.send_area
+            ep.producers[_MSG_SAFETY_ALLOWED_AREA] = self._area_m
         if ep.has(_MSG_LOCAL_OFFSET):
             from .telemetry import Slot
 
@@ -143,11 +147,21 @@ class Geography:
 
     def local_offset(self, x, y, z, roll, pitch, yaw):
         """LOCAL_POSITION_NED_SYSTEM_GLOBAL_OFFSET: m, rad."""
+        # Staged, then packed by a function of few locals (see _pack_offset).
+        self._v1 = x
+        self._v2 = y
+        self._v3 = z
+        self._v4 = roll
+        self._v5 = pitch
+        self._v6 = yaw
+        self._pack_offset()
+
+    def _pack_offset(self):
         s = self._slot
         if s is None:
             return
-        pack_into("<fff", s.buf, 4, x, y, z)
-        pack_into("<fff", s.buf, 16, roll, pitch, yaw)
+        pack_into("<fff", s.buf, 4, self._v1, self._v2, self._v3)
+        pack_into("<fff", s.buf, 16, self._v4, self._v5, self._v6)
         self.ep.clock.stamp_ms(s.buf, 0)
         s.written = True
 
@@ -188,7 +202,7 @@ class Geography:
         self._file[0] |= _HAS_ORIGIN
         self.origin_set = True
         self._save()
-        self._to_all(self.send_origin)
+        self._to_all(self._origin_m)
 
     def _on_set_area(self, link, p):
         if not self._may(link, p[24], p[25]):
@@ -207,7 +221,7 @@ class Geography:
             self.area_set = True
             self.area_local = p[26] in LOCAL_FRAMES
         self._save()
-        self._to_all(self.send_area)
+        self._to_all(self._area_m)
 
     def _on_state_correction(self, link, p):
         if self.on_state_correction is not None:
@@ -226,17 +240,11 @@ class Geography:
         t = self._tmp
         copy(t, p, o << 10, 24)
         local = frame in LOCAL_FRAMES
-        for i in (0, 4, 12, 16):
-            if not fix(t, i, local):
-                return False
-        if not fix(t, 8, True) or not fix(t, 20, True):
+        if not _fixed(t, local):
             return False
         if not local and not (_latitude_ok(t, 0) and _latitude_ok(t, 12)):
             return False
-        b = self._bounds
-        _order(b, _XMIN, t, 0, 12)
-        _order(b, _YMIN, t, 4, 16)
-        _order(b, _ZMIN, t, 8, 20)
+        _order3(self._bounds, t)
         return True
 
     # --- storage -----------------------------------------------------------------------
@@ -261,6 +269,12 @@ class Geography:
             self._file[0] &= _HAS_ORIGIN
 
     def _save(self):
+        try:
+            self._write()
+        except OSError:
+            self.ep.statustext(WARNING, b"Origin and allowed area not saved")
+
+    def _write(self):
         storage = getattr(self.ep, "storage", None)
         if storage is None:
             return
@@ -268,13 +282,10 @@ class Geography:
         crc = crc16(data, 0, 38, 0xFFFF)
         data[38] = crc & 0xFF
         data[39] = crc >> 8
-        try:
-            f = storage.open_new(_FILE, _FILE_LEN)
-            f.write(data)
-            f.close()
-            storage.commit(_FILE)
-        except OSError:
-            self.ep.statustext(WARNING, b"Origin and allowed area not saved")
+        f = storage.open_new(_FILE, _FILE_LEN)
+        f.write(data)
+        f.close()
+        storage.commit(_FILE)
 
 
 # Helpers of few locals (a frame state past about 11 words comes from the heap).
@@ -285,21 +296,53 @@ def _between(b, o, hi, lo):
 
 def _inside(b, o, v, vo):
     """The int32 at v[vo] within the bounds b[o], b[o + 4]."""
-    hi = v[vo + 2] | v[vo + 3] << 8
-    if hi & 0x8000:
-        hi -= 0x10000
-    return _between(b, o, hi, v[vo] | v[vo + 1] << 8)
+    return _le(b, o, v, vo) and _le(v, vo, b, o + 4)
+
+
+def _le(a, ao, b, bo):
+    """The int32 at a[ao] <= the one at b[bo], by halves."""
+    d = _hi(a, ao) - _hi(b, bo)
+    if d:
+        return d < 0
+    return _lo(a, ao) <= _lo(b, bo)
+
+
+def _lo(v, o):
+    return v[o] | v[o + 1] << 8
+
+
+def _hi(v, o):
+    """The signed high half of the int32 at v[o]."""
+    hi = v[o + 2] | v[o + 3] << 8
+    return hi - 0x10000 if hi & 0x8000 else hi
 
 
 def _order(b, o, t, i, j):
     """b[o] = the smaller of the int32 t[i], t[j]; b[o + 4] the larger."""
-    hi = t[j + 2] | t[j + 3] << 8
-    if hi & 0x8000:
-        hi -= 0x10000
-    if i32_cmp(t, i, hi, t[j] | t[j + 1] << 8) > 0:
+    if _greater(t, i, j):
         i, j = j, i
     copy(b, t, i << 10 | o, 4)
-    copy(b, t, j << 10 | o + 4, 4)
+    copy(b, t, j << 10 | (o + 4), 4)
+
+
+def _order3(b, t):
+    # The corners (x, y, z of p1 at t[0..11], of p2 at t[12..23]) as min, max bounds.
+    _order(b, _XMIN, t, 0, 12)
+    _order(b, _YMIN, t, 4, 16)
+    _order(b, _ZMIN, t, 8, 20)
+
+
+def _greater(t, i, j):
+    """The int32 at t[i] > the one at t[j]."""
+    lo = t[j] | t[j + 1] << 8
+    return i32_cmp(t, i, _hi(t, j), lo) > 0
+
+
+def _fixed(t, local):
+    """The corners' float32 made int32 in place: x, y as degrees * 1e7 (metres * 1e4
+    where local), z as metres * 1e4 -> False if one is no number or beyond int32."""
+    return (fix(t, 0, local) and fix(t, 4, local) and fix(t, 12, local) and fix(t, 16, local)
+            and fix(t, 8, True) and fix(t, 20, True))
 
 
 def _latitude_ok(p, o):

@@ -10,8 +10,9 @@
                             MAV_RESULT (default UNSUPPORTED: flying to a point is the
                             application's guided flight).
     NAV_ROI (80)            param1 MAV_ROI (0 none, 1 next waypoint, 2 waypoint param2,
-                            3 location param5-7, 4 target param3): kept as `roi`
-                            (mode, param2, param3, x, y, z) and handed to on_roi(cmd)
+                            3 location param5-7, 4 target param3): kept (`roi` the
+                            mode, `roi_params` the command's param1-4, x, y, z bytes,
+                            `roi_int` COMMAND_INT's form) and handed to on_roi(cmd)
                             if the application has it; ACCEPTED; a mode beyond 4 DENIED.
     NAV_PATHPLANNING (81)   the application's path planner: on_pathplanning(cmd);
                             default UNSUPPORTED (no planner on board).
@@ -30,6 +31,7 @@ control): else DENIED with a STATUSTEXT. REASONS gives the table's words for the
 refused ones (host_tools/seed_coverage.py reads it).
 """
 from ..compat import const
+from ..kernels import copy
 from .statustext import WARNING
 
 _ACCEPTED = const(0)
@@ -68,7 +70,9 @@ class SeedCommands:
         self.on_roi = None
         self.on_pathplanning = None
         self.on_video = None
-        self.roi = None
+        self.roi = -1  # MAV_ROI of the last NAV_ROI, -1: none
+        self.roi_params = bytearray(28)  # its param1-4, x, y, z as they came
+        self.roi_int = False  # ... in COMMAND_INT's form (x, y int32)
         self.held = False
 
     def attach(self, ep):
@@ -147,8 +151,9 @@ class SeedCommands:
             return _DENIED
         if not self._allowed(cmd):
             return _DENIED
-        self.roi = (cmd.int(1), cmd.int(2) if cmd.finite(2) else 0, cmd.int(3) if cmd.finite(3) else 0,
-                    cmd.float(5), cmd.float(6), cmd.float(7))
+        self.roi = cmd.int(1)
+        self.roi_int = cmd.is_int
+        copy(self.roi_params, cmd.payload, 0, 28)
         if self.on_roi is not None:
             return self.on_roi(cmd)
         return _ACCEPTED

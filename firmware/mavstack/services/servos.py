@@ -22,6 +22,9 @@ what the application writes there (the unix vehicle's motors are outputs 1-4, it
 5-16; the seed's SERVO_OUTPUT_RAW has 8 outputs, so there only 5-8 show).
 """
 from ..compat import const, ticks_diff
+from ..fields import i32
+from ..kernels import copy
+from .mission_items import fix
 from .statustext import WARNING
 
 _CMD_DO_SET_RELAY = const(181)
@@ -52,6 +55,7 @@ class Servos:
         self.servo_repeat = [-1, 0, 0, 0, 0]
         self.tm = None
         self._write_servo = None
+        self._scratch = bytearray(4)
 
     def attach(self, ep):
         self.ep = ep
@@ -161,7 +165,7 @@ class Servos:
         n = self._relay_of(cmd)
         if n < 0:
             return self._refuse(b"Relay: no such relay")
-        half = _half_cycle_ms(cmd, 2, 3)
+        half = _half_cycle_ms(cmd, 2, 3, self._scratch)
         if half <= 0:
             return self._refuse(b"Relay repeat: bad cycle count or time")
         if not self._allowed(cmd):
@@ -189,7 +193,7 @@ class Servos:
         n = self._servo_of(cmd)
         if n < 0:
             return self._refuse(b"Servo: no such output or width out of range")
-        half = _half_cycle_ms(cmd, 3, 4)
+        half = _half_cycle_ms(cmd, 3, 4, self._scratch)
         if half <= 0:
             return self._refuse(b"Servo repeat: bad cycle count or time")
         if not self._allowed(cmd):
@@ -230,13 +234,16 @@ class Servos:
             r[0] = -1
 
 
-def _half_cycle_ms(cmd, count, time):
-    """Half a cycle in ms from the cycle count and cycle time (s) parameters; 0 if bad."""
-    if not cmd.finite(count) or not cmd.finite(time) or cmd.int(count) < 1:
+def _half_cycle_ms(cmd, count, time, scratch):
+    """Half a cycle in ms from the cycle count and cycle time (s) parameters; 0 if bad.
+    The seconds go through their float32 bits (mission_items.fix: * 1e4, exact), not a
+    float: on MicroPython a float is a heap object."""
+    if not cmd.finite(count) or not cmd.finite(time) or not 1 <= cmd.int(count) <= 10000:
         return 0
-    if cmd.int(count) > 10000:
+    copy(scratch, cmd.payload, (time - 1) * 4 << 10, 4)
+    if not fix(scratch, 0, True):
         return 0
-    ms = int(cmd.float(time) * 500)
+    ms = i32(scratch, 0) // 20  # seconds * 1e4 -> half a cycle in ms
     return ms if 0 < ms <= 3600000 else 0
 
 

@@ -41,6 +41,7 @@ class SeedTelemetry:
     def __init__(self):
         self.slots = {}
         self._local = self._global = self._attitude = self._speed = self._rates = None
+        self._v1 = self._v2 = self._v3 = self._v4 = self._frame = 0
 
     def attach(self, ep):
         self.ep = ep
@@ -56,30 +57,65 @@ class SeedTelemetry:
         self._speed = g(_SPEED)
         self._rates = g(_RATES)
 
+    # Setters stage their values (self._v1..) and a function of few locals packs them:
+    # MicroPython takes a frame state of more than about 11 words from the heap.
     def local_setpoint(self, frame, x, y, z, yaw):
+        self._v1 = x
+        self._v2 = y
+        self._v3 = z
+        self._v4 = yaw
+        self._frame = frame
+        self._pack_local()
+
+    def global_setpoint(self, frame, lat, lon, alt, yaw):
+        self._v1 = lat
+        self._v2 = lon
+        self._v3 = alt
+        self._v4 = yaw
+        self._frame = frame
+        self._pack_global()
+
+    def attitude_setpoint(self, roll, pitch, yaw, thrust):
+        self._stage(roll, pitch, yaw, thrust)
+        self._pack_four(self._attitude)
+
+    def speed_setpoint(self, roll_speed, pitch_speed, yaw_speed, thrust):
+        self._stage(roll_speed, pitch_speed, yaw_speed, thrust)
+        self._pack_four(self._speed)
+
+    def rates_setpoint(self, roll_rate, pitch_rate, yaw_rate, thrust):
+        self._stage(roll_rate, pitch_rate, yaw_rate, thrust)
+        self._pack_four(self._rates)
+
+    def _stage(self, a, b, c, d):
+        self._v1 = a
+        self._v2 = b
+        self._v3 = c
+        self._v4 = d
+
+    def _pack_local(self):
         s = self._local
         if s is None:
             return
-        pack_into("<ffff", s.buf, 0, x, y, z, yaw)
-        s.buf[16] = frame
+        pack_into("<ffff", s.buf, 0, self._v1, self._v2, self._v3, self._v4)
+        s.buf[16] = self._frame
         s.written = True
 
-    def global_setpoint(self, frame, lat, lon, alt, yaw):
+    def _pack_global(self):
         s = self._global
         if s is None:
             return
-        pack_into("<iii", s.buf, 0, lat, lon, alt)
-        pack_into("<hB", s.buf, 12, yaw, frame)
+        pack_into("<iii", s.buf, 0, self._v1, self._v2, self._v3)
+        pack_into("<hB", s.buf, 12, self._v4, self._frame)
         s.written = True
 
-    def attitude_setpoint(self, roll, pitch, yaw, thrust):
-        _four(self.ep, self._attitude, roll, pitch, yaw, thrust)
-
-    def speed_setpoint(self, roll_speed, pitch_speed, yaw_speed, thrust):
-        _four(self.ep, self._speed, roll_speed, pitch_speed, yaw_speed, thrust)
-
-    def rates_setpoint(self, roll_rate, pitch_rate, yaw_rate, thrust):
-        _four(self.ep, self._rates, roll_rate, pitch_rate, yaw_rate, thrust)
+    def _pack_four(self, s):
+        # time_boot_ms, then four floats
+        if s is None:
+            return
+        pack_into("<ffff", s.buf, 4, self._v1, self._v2, self._v3, self._v4)
+        self.ep.clock.stamp_ms(s.buf, 0)
+        s.written = True
 
 
 def _echo_slot(ep, msgid):
@@ -91,15 +127,6 @@ def _echo_slot(ep, msgid):
         if echo is not None and echo.slot.msgid == msgid:
             return echo.slot
     return None
-
-
-def _four(ep, s, a, b, c, d):
-    # time_boot_ms, then four floats
-    if s is None:
-        return
-    pack_into("<ffff", s.buf, 4, a, b, c, d)
-    ep.clock.stamp_ms(s.buf, 0)
-    s.written = True
 
 
 def create(ep):
