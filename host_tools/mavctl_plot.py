@@ -15,8 +15,7 @@ from mavctl_cli import group
 from mavctl_errors import EXIT_OK, Failure, usage
 from mavctl_vehicle import MISSION_TYPES, enum_name
 from mission_files import LOCAL_FRAMES
-from plan_files import (CIRCLE_INCLUSION, FENCE_RETURN, POLYGON_INCLUSION, RALLY_POINT, Plan,
-                        read_any)
+from plan_files import Plan, read_any
 
 EARTH_M_PER_DEG = 111319.49  # metres per degree of latitude (WGS-84 equatorial radius)
 DEFAULT_SIZE = (1000, 800)

@@ -13,7 +13,6 @@ proven by what follows: frames from the vehicle that check with the new key (set
 unsigned ones (clear).
 """
 import hashlib
-import os
 import sys
 import time
 
