@@ -83,7 +83,6 @@ _WRITING = const(2)
 
 _PER_TICK = const(8)  # burst replies one tick may send
 _FRAME = const(280)  # bytes of a full MAVLink 2 FILE_TRANSFER_PROTOCOL frame, for the budget
-_WARNING = const(4)
 
 
 class Ftp(FtpRare):
