@@ -15,7 +15,7 @@ MCU_DEBS := gcc-arm-none-eabi=15:12.2.rel1-1 libnewlib-arm-none-eabi=3.3.0-1.3+d
 MCU_TOOLS_OK = command -v qemu-system-arm >/dev/null && command -v arm-none-eabi-gcc >/dev/null \
 	&& test -d /usr/lib/arm-none-eabi/newlib
 
-.PHONY: setup test run bench dialects clean mcu-deps mcu-tools mcu-test mcu-firmware fuzz soak
+.PHONY: setup test run bench dialects clean mcu-deps mcu-tools mcu-test mcu-firmware fuzz soak seed-coverage
 
 setup: $(STAMP)
 
@@ -68,6 +68,10 @@ bench: setup
 
 dialects: setup
 	$(PY) host_tools/mavgen.py --all
+	$(PY) host_tools/seed_coverage.py
+
+seed-coverage: setup
+	$(PY) host_tools/seed_coverage.py
 
 clean:
 	rm -rf $(VENV) storage build bench/latest.json
