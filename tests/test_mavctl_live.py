@@ -14,7 +14,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
 
 from conftest import PYTHON, ROOT, free_udp_port, recv
-from mavctl_tools import MAVCTL, mavctl, mavctl_cli_run, ok, refused, signed_board
+from mavctl_tools import MAVCTL, check_png, mavctl, mavctl_cli_run, ok, refused, signed_board
 from relay import LossyRelay
 
 RADIO = (51, 68)  # a SiK radio's system and component id
@@ -153,6 +153,9 @@ def test_watch_lines_and_a_tlog_pymavlink_reads_back(gcs_link_port, tmp_path):
                            str(tlog)], capture_output=True, text=True, timeout=60)
     assert dump.returncode == 0, dump.stderr
     assert sum("GPS_RAW_INT {" in line and "fix_type : 3" in line for line in dump.stdout.splitlines()) >= 3
+    # Plotted: a vehicle standing at home (a track of one point, flat lines).
+    ok(mavctl(None, "log", "plot", tlog, "--png", tmp_path / "still.png", "--size", "600x450"))
+    check_png(tmp_path / "still.png", 600, 450)
     # The rate table.
     rates = ok(mavctl(link, "watch", "--rates", "--seconds", "2")).splitlines()
     assert rates[0].split() == ["MESSAGE", "COUNT", "HZ"]
