@@ -16,9 +16,12 @@ Layout (host_tools/):
     mavctl_link.py      --connect specs, auto-connect, the first HEARTBEAT, open errors
     mavctl_vehicle.py   the Vehicle: commands, parameter and mission protocols, enum names
     mavctl_errors.py    Failure and the exit statuses
-    mavctl_commands.py  params, mission, command, arm, mode, reboot, stream, watch, ports
+    mavctl_params.py    params: get, set, list; .params/.parm files (param_files.py)
+    mavctl_mission.py   mission: .plan (plan_files.py) and QGC WPL (mission_files.py)
+    mavctl_commands.py  command, arm, mode, reboot, stream, watch (lines), ports
+    mavctl_progress.py  progress bars on a terminal
     mavctl_flash.py     `mavctl flash`, delegated to flash.py
-    mission_files.py    QGC WPL 110 missions
+    (the live view, plots, sim and signing are plug-ins of their own: mavctl_cli.PLUGINS)
 
 Exit status: 0 done, 1 the vehicle refused (NACK) or did not answer, 2 usage error or
 malformed file (nothing sent), 3 no port or port busy, 4 permission denied, 5 no

@@ -22,7 +22,7 @@ Plug-in convention. PLUGINS names modules (importable from host_tools/); each ex
   `mission`, `log`, `signing`...), creating it if no module did yet, so modules can add
   actions to each other's subcommands in any order.
 - Modules are registered in PLUGINS order; a subcommand name already taken is kept by the
-  earlier module (mavctl_commands comes last, so a plug-in can take over `watch`). A module
+  earlier module (mavctl's own come last, so a plug-in can take over `watch`). A module
   that is not there is skipped; one that fails to import is skipped with a warning.
 - Progress bars: mavctl_progress.progress(total, what) (terminal only, quiet in pipes).
 """
@@ -34,7 +34,7 @@ import mavctl_link
 from mavctl_errors import EXIT_OK, EXIT_STATUS_HELP, EXIT_USAGE, Failure
 
 PLUGINS = ("mavctl_watch", "mavctl_plot", "mavctl_sim", "mavctl_signing", "mavctl_flash",
-           "mavctl_commands")
+           "mavctl_params", "mavctl_mission", "mavctl_commands")
 
 
 def group(sub, name, help=None):

@@ -167,7 +167,7 @@ def test_plugins_missing_or_broken(tmp_path, monkeypatch):
     its own subcommands, with a warning."""
     (tmp_path / "broken_plugin.py").write_text("import no_such_dependency_here\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(mavctl_cli, "PLUGINS", ("no_such_plugin", "broken_plugin", "mavctl_commands"))
+    monkeypatch.setattr(mavctl_cli, "PLUGINS", ("no_such_plugin", "broken_plugin", "mavctl_params"))
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         ap = mavctl_cli.parser()

@@ -41,11 +41,11 @@ def test_first_session_over_the_sim_pty(tmp_path):
     try:
         link = ("--connect", "serial:%s" % device)
         listing = run(*link, "params", "list").splitlines()
-        assert len(listing) == 100 and any(line.split()[0] == "WP_SPEED" for line in listing)
+        assert any(line.split()[0] == "WP_SPEED" for line in listing)
         run(*link, "params", "save", tmp_path / "before.params")
         run(*link, "params", "set", "WP_SPEED", "7.5")
         out = run(*link, "params", "load", tmp_path / "before.params")
-        assert out.splitlines()[-1].endswith(": 1 changed, 99 unchanged, 0 refused")
+        assert out.splitlines()[-1].endswith(": 1 changed, %d unchanged, 0 refused" % (len(listing) - 1))
 
         plan = qgc_plan()
         (tmp_path / "route.plan").write_text(json.dumps(plan))
