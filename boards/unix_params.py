@@ -42,7 +42,7 @@ PARAMS = (
     ("MIS_DIST_MAX", REAL32, 900.0, 0.0, 100000.0),
     ("MIS_AUTOCONT", INT32, 0, 0, 1),
     # return and landing
-    ("RTL_ALT", REAL32, 15.0, 2.0, 300.0),
+    ("RTL_ALT", REAL32, 15.0, 2.0, 300.0),  # m above home RTL returns at (or higher, if it is)
     ("RTL_SPEED", REAL32, 0.0, 0.0, 30.0),  # 0: WP_SPEED
     ("RTL_LOIT_TIME_S", REAL32, 5.0, 0.0, 300.0),  # 15 characters
     ("LAND_SPEED", REAL32, 0.5, 0.2, 5.0),
@@ -62,6 +62,7 @@ PARAMS = (
     ("BATT_ARM_VOLT", REAL32, 0.0, 0.0, 60.0),
     ("FS_GCS_ENABLE", INT32, 1, 0, 5),
     ("FS_GCS_TIMEOUT", REAL32, 5.0, 1.0, 120.0),
+    ("FS_HOLD_S", REAL32, 5.0, 0.0, 120.0),  # a failsafe holds this long, then returns
     ("FS_THR_ENABLE", INT32, 0, 0, 5),
     ("FS_EKF_THRESH", REAL32, 0.8, 0.0, 1.0),
     ("FS_CRASH_CHECK", INT32, 1, 0, 1),

@@ -181,6 +181,8 @@ class MissionRunner:
     def mode(self):
         """MISSION_CURRENT.mission_mode: 1 in the mission's mode, 2 suspended, 0 unknown."""
         status = self.missions.ep.services.get("status")
+        if status is not None and status.flight_mode is not None:
+            return 1 if status.flight_mode == "AUTO" else 2  # RTL, LAND ... are AUTO too
         if status is not None:
             return 1 if status.auto else 2
         return 1 if self.running else 2

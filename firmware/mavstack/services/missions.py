@@ -47,6 +47,9 @@ on the heap.
                                 kept and served, MISSION_START is UNSUPPORTED)
     missions.upload             mission_upload.Upload (its window and round-trip timer)
     missions.allow(command, need=0)   a MAV_CMD the application flies (need: _P*/_POS bits)
+    missions.on_guided = fn(link, payload, is_int) -> MAV_MISSION_RESULT   the application's
+                                handler of a MISSION_ITEM(_INT) with current 2 (go there) or 3
+                                (change altitude); None: such items are taken as plan items
 """
 import gc
 
@@ -121,6 +124,7 @@ class Missions:
     extra = None  # {command: need} the application added to the mission rules (allow)
     runner = None  # mission_runner.MissionRunner
     rare = None  # mission_rare.py, once loaded (see _on_rare)
+    on_guided = None  # the application's guided go-to (see above)
 
     def __init__(self, storage, capacities=(500, 100, 20), frames=(0, 2, 3, 5, 6), retry_ms=250,
                  retries=5, timeout_ms=5000, jump_slots=16, commands=(), window=8, rto_min=20,
@@ -336,7 +340,11 @@ class Missions:
         # MISSION_ITEM_INT and the seed's MISSION_ITEM share their layout but for x and y.
         if not self.ep.for_us(p[32], p[33]):
             return
-        if self.state != _UPLOAD or not self._is_peer(link):
+        if p[35] >= 2 and self.on_guided is not None:
+            # current 2 / 3: not a plan's item but ArduPilot's "guided" go-to / change
+            # altitude (MAVProxy's `guided`): the application's, answered with its result.
+            self._reply(link, self.on_guided(link, p, link.rx.msgid == _MSG_ITEM_INT), 0)
+        elif self.state != _UPLOAD or not self._is_peer(link):
             self._on_rare(link, p)  # a repeat of the last item whose ACK was lost?
         elif (p[37] if self.has_type else 0) == self.t_store.mission_type:
             self.upload.item(link, p, u16(p, 28))
