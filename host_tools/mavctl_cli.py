@@ -28,6 +28,7 @@ Plug-in convention. PLUGINS names modules (importable from host_tools/); each ex
 """
 import argparse
 import importlib
+import os
 import sys
 
 import mavctl_link
@@ -107,6 +108,11 @@ def main(argv=None):
         print("mavctl: interrupted", file=sys.stderr)
         return EXIT_USAGE
     except BrokenPipeError:
+        # The reader went away (`mavctl ... | head`): done, and nothing left to flush at exit.
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
         return EXIT_OK
 
 
