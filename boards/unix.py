@@ -51,10 +51,10 @@ def transports():
 
 def application(endpoint):
     from simulator import Simulator
-    import sim_calibration
+    import sim_seed
 
     sim = Simulator(endpoint)
-    sim_calibration.compose(endpoint, sim)  # PREFLIGHT_CALIBRATION, DO_CONTROL_VIDEO
+    sim_seed.compose(endpoint, sim)  # calibration, video, debug values, state corrections
     return sim
 
 

@@ -1,4 +1,15 @@
-"""The simulated vehicle's calibration (mavstack/services/calibration.py's handler).
+"""What the simulated vehicle does with the seed's calibration, video, debugging and
+state-correction messages: the application side of services/calibration.py,
+seed_commands.py (DO_CONTROL_VIDEO), debug.py and geography.py (STATE_CORRECTION).
+
+Debug values (NAMED_VALUE_FLOAT/INT, DEBUG, DEBUG_VECT, MEMORY_VECT) and a
+STATE_CORRECTION are taken as the simulator's console would: kept (the debug service's
+`values`, name or index -> value as text; the geography service's `corrections`, a
+count) and told back in a STATUSTEXT
+("Debug speed=1.50", "State correction x=0.10 y=... z=..."), so a ground station sees
+that they arrived.
+
+Calibration:
 
 PREFLIGHT_CALIBRATION: the sensors asked for (param1 gyro, 2 magnetometer, 3 ground
 pressure, 4 radio, 5 accelerometer, 6 compass/motor, 7 airspeed; 1 each) are
@@ -11,6 +22,8 @@ armed). PREFLIGHT_SET_SENSOR_OFFSETS: sensor 0-6 takes the offsets (kept in
 The board composes it with the simulator (boards/unix.py application(): compose()),
 which also gives DO_CONTROL_VIDEO the simulator's camera.
 """
+import struct
+
 from mavstack.compat import ticks_diff
 
 _ACCEPTED = 0
@@ -25,7 +38,7 @@ OFFSET_SENSORS = 7
 
 
 class SimCalibration:
-    NAME = "sim_calibration"
+    NAME = "sim_seed"
     CLOCK = False
 
     def __init__(self, step_ms=300):
@@ -91,10 +104,46 @@ class SimCalibration:
         self._pending = None
 
 
+def _debug_text(msgid, p):
+    """(name, value as text) of a debug message, None for one that is not."""
+    if msgid == 251:
+        return _name(p, 8), "%.2f" % struct.unpack_from("<f", p, 4)[0]
+    if msgid == 252:
+        return _name(p, 8), "%d" % struct.unpack_from("<i", p, 4)[0]
+    if msgid == 254:
+        return "[%d]" % p[8], "%.2f" % struct.unpack_from("<f", p, 4)[0]
+    if msgid == 250:
+        return _name(p, 20), "(%.2f,%.2f,%.2f)" % struct.unpack_from("<fff", p, 8)
+    if msgid == 249:
+        return "mem@%d" % (p[0] | p[1] << 8), "%d bytes" % 32
+    return None
+
+
+def _name(p, o):
+    return bytes(p[o:o + 10]).split(b"\0")[0].decode("utf-8", "replace")
+
+
 def compose(ep, sim=None):
     """Attach to an endpoint that has the calibration service (the simulator's board);
     the simulator's camera (sim.video) answers DO_CONTROL_VIDEO (services/seed_commands.py):
     param2 transmission or param4 recording above 0 turns it on, both 0 off."""
+    debug = ep.services.get("debug")
+    values = {}
+    if debug is not None:
+        def on_debug(link, msgid, p):
+            text = _debug_text(msgid, p)
+            if text:
+                values[text[0]] = text[1]
+                ep.statustext(_INFO, "Debug %s=%s" % text)
+        debug.handler = on_debug
+        debug.values = values
+    geo = ep.services.get("geography")
+    if geo is not None:
+        def on_correction(link, p):
+            x, y, z = struct.unpack_from("<fff", p, 0)
+            geo.corrections = getattr(geo, "corrections", 0) + 1
+            ep.statustext(_INFO, "State correction x=%.2f y=%.2f z=%.2f" % (x, y, z))
+        geo.on_state_correction = on_correction
     seed = ep.services.get("seed_commands")
     if seed is not None and sim is not None and hasattr(sim, "video"):
         def video(cmd):

@@ -15,7 +15,7 @@ Built in, before the handler: the sender must be in control (operator control) a
 the vehicle disarmed (a calibration moves the estimates the vehicle flies by):
 otherwise DENIED, with a STATUSTEXT. The documented default without a handler is
 UNSUPPORTED with a STATUSTEXT: a board with nothing to calibrate has nothing to do.
-The simulated vehicle's handler is firmware/sim_calibration.py.
+The simulated vehicle's handler is firmware/sim_seed.py.
 """
 from ..compat import const
 from .statustext import WARNING

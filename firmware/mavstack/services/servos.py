@@ -7,7 +7,8 @@ DO_REPEAT_SERVO drive a board's relay and servo table.
     DO_SET_SERVO (183)     param1 servo output (SERVO_CHANNELS), param2 pulse width (us)
     DO_REPEAT_SERVO (184)  param1 servo, param2 pulse width, param3 cycles, param4 cycle
                            time (s): between that width and SERVO_NOMINAL, then nominal
-A repeat runs in tick(), never blocking; one relay repeat and one servo repeat at a time
+In a mission, the application hands such an item to do_item(item) as the runner makes
+it current. A repeat runs in tick(), never blocking; one relay repeat and one servo repeat at a time
 (a new one replaces the one running, and a SET of the same output stops it). The
 sender must be in control (operator control); outputs out of the table, widths out of
 SERVO_RANGE, cycle counts below 1 or times not above 0 are DENIED, with a STATUSTEXT.
@@ -59,11 +60,13 @@ class Servos:
 
     def attach(self, ep):
         self.ep = ep
-        for cmd, handler in ((_CMD_DO_SET_RELAY, self._cmd_set_relay),
-                             (_CMD_DO_REPEAT_RELAY, self._cmd_repeat_relay),
-                             (_CMD_DO_SET_SERVO, self._cmd_set_servo),
-                             (_CMD_DO_REPEAT_SERVO, self._cmd_repeat_servo)):
-            ep.commands[cmd] = handler
+        from .commands import Command
+
+        self._item_cmd = Command()  # do_item's: a mission item's params read as a command's
+        self._by_id = {_CMD_DO_SET_RELAY: self._cmd_set_relay, _CMD_DO_REPEAT_RELAY: self._cmd_repeat_relay,
+                       _CMD_DO_SET_SERVO: self._cmd_set_servo, _CMD_DO_REPEAT_SERVO: self._cmd_repeat_servo}
+        for cmd in self._by_id:
+            ep.commands[cmd] = self._by_id[cmd]
         tm = getattr(ep, "telemetry", None)
         if tm is not None and tm._servo is not None:
             # Whatever the application writes to SERVO_OUTPUT_RAW, the table goes over it.
@@ -128,7 +131,21 @@ class Servos:
         buf[o + 1] = self._servos[i + 1]
 
     # --- commands ----------------------------------------------------------------------
+    def do_item(self, item):
+        """A mission's DO_SET_RELAY / DO_REPEAT_RELAY / DO_SET_SERVO / DO_REPEAT_SERVO
+        (services/mission_runner.py's Item; its record holds param1-4 where COMMAND_LONG
+        does) carried out as the command would be -> MAV_RESULT, None for another item.
+        The application calls it as the runner makes such an item current."""
+        handler = self._by_id.get(item.command)
+        if handler is None:
+            return None
+        cmd = self._item_cmd
+        cmd.payload = item.rec
+        return handler(cmd)
+
     def _allowed(self, cmd):
+        if cmd.link is None:  # a mission item: its plan was uploaded by a station in control
+            return True
         if self.ep.allows(cmd.link):
             return True
         self.ep.statustext(WARNING, b"Servo/relay: GCS not in control")
