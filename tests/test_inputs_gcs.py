@@ -3,13 +3,14 @@
 MAVSDK-Python's offboard plugin (set_position_ned, set_velocity_ned, started and
 stopped) and its manual_control plugin; MAVProxy's `rc 3 1600`; pymavlink streaming
 MANUAL_CONTROL at 20 Hz, then stopping, which trips the input-loss failsafe (hold, then
-return to launch). The vehicle's motion is read from its own telemetry.
+return to launch), and the same for offboard setpoints, without which OFFBOARD is refused.
+The vehicle's motion is read from its own telemetry.
 """
 import math
 import threading
 import time
 
-from gcs_tools import MAV_RESULT_ACCEPTED, MavProxy, listen, mavsdk_system, run, start, two_links
+from gcs_tools import MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MavProxy, listen, mavsdk_system, run, start, two_links
 
 FAST = ("--set", "sim_speed=8", "--set", "sim_climb=4")
 # boards/unix.py FLIGHT_MODES numbers (ArduPilot's, as pymavlink reads them)
@@ -193,3 +194,32 @@ def _wait(cond, timeout):
         time.sleep(0.1)
     return False
 
+
+
+def test_pymavlink_offboard_refused_without_setpoints_then_loss_failsafe(vehicle):
+    # PX4's rule: OFFBOARD only with setpoints streaming; when they stop, hold, then RTL.
+    m = start(vehicle, *FAST).gcs(source_system=245, source_component=190)  # PX4 numbering (MAVSDK's id)
+    assert run(m, 400, 1) == MAV_RESULT_ACCEPTED
+    assert run(m, 176, 1, 6, 0) == MAV_RESULT_DENIED  # no setpoint yet
+    stop = threading.Event()
+
+    def stream():
+        while not stop.is_set():
+            m.mav.set_position_target_local_ned_send(0, 1, 1, 1, 0b100111111000, 0.0, 0.0, -4.0,
+                                                     0, 0, 0, 0, 0, 0, 0.0, 0.0)
+            time.sleep(0.05)
+
+    t = threading.Thread(target=stream, daemon=True)
+    t.start()
+    try:
+        time.sleep(0.3)
+        assert run(m, 176, 1, 6, 0) == MAV_RESULT_ACCEPTED
+        home = _position(m)
+        _climb_until(m, home, 3.0, 30)
+    finally:
+        stop.set()
+        t.join()
+    texts = []
+    assert _mode_is(m, 3 << 24 | 4 << 16, 10, texts), "no hold after the setpoints stopped"  # PX4 AUTO.LOITER
+    assert _mode_is(m, 5 << 24 | 4 << 16, 20, texts), "no return to launch after the hold"  # AUTO.RTL
+    assert any("Offboard setpoints lost" in t for t in texts), texts
