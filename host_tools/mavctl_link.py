@@ -86,29 +86,39 @@ def usb_serial_ports():
 
 
 def heard_on_udp(port, seconds, sysid, compid):
-    """A udpin connection on port if a vehicle's HEARTBEAT arrives there within seconds,
-    else None (also when another program holds the port)."""
+    """(udpin connection on port, the system ids heard) if vehicles' HEARTBEATs arrive there
+    within seconds (listening a beat longer after the first, to hear any other), else
+    (None, ()) (also when another program holds the port)."""
     try:
         conn = open_link("udpin:0.0.0.0:%d" % port, sysid, compid)
     except Failure:
-        return None
+        return None, ()
+    systems = set()
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         msg = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=0.2)
         if msg is not None and msg.type != MAV_TYPE_GCS:
-            return conn
+            if not systems:
+                deadline = min(deadline, time.monotonic() + 1.2)
+            systems.add(msg.get_srcSystem())
+    if systems:
+        return conn, sorted(systems)
     conn.close()
-    return None
+    return None, ()
 
 
 def autoconnect(args, listen_seconds=2.5):
     """The link when no --connect is given: the single candidate among the USB serial
-    ports and a vehicle heard on UDP --udp-port (default 14550)."""
+    ports and the vehicles heard on UDP --udp-port (default 14550)."""
     ports = usb_serial_ports()
-    udp = heard_on_udp(args.udp_port, listen_seconds, args.sysid, args.compid)
+    udp, systems = heard_on_udp(args.udp_port, listen_seconds, args.sysid, args.compid)
     found = ["serial:%s:%d" % (p, args.baud) for p in ports]
-    if udp is not None:
-        found.append("udpin:0.0.0.0:%d" % args.udp_port)
+    if args.target_system is not None and args.target_system in systems:
+        systems = [args.target_system]
+    elif args.target_system is not None and udp is not None:
+        udp.close()
+        udp, systems = None, ()
+    found += ["udpin:0.0.0.0:%d (system %d)" % (args.udp_port, s) for s in systems]
     if len(found) == 1:
         if udp is not None:
             return udp
@@ -118,8 +128,8 @@ def autoconnect(args, listen_seconds=2.5):
     if not found:
         raise Failure("no vehicle found: no USB serial device, nothing heard on UDP %d; plug the "
                       "board in or give --connect" % args.udp_port, EXIT_NO_PORT)
-    raise Failure("several vehicles or ports: %s; choose one with --connect" % ", ".join(found),
-                  EXIT_NO_PORT)
+    raise Failure("several vehicles or ports: %s; choose one with --connect (and --target-system)"
+                  % ", ".join(found), EXIT_NO_PORT)
 
 
 def open_from_args(args):

@@ -122,13 +122,26 @@ def test_autoconnect(vehicle, monkeypatch, tmp_path):
     usb = str(tmp_path / "ttyACM0")
     monkeypatch.setattr(mavctl_link, "usb_serial_ports", lambda: [usb])
     one_line(in_process("--udp-port", port, "arm"), EXIT_NO_PORT, "several",
-             "serial:%s:57600" % usb, "udpin:0.0.0.0:%d" % port, "--connect")
+             "serial:%s:57600" % usb, "udpin:0.0.0.0:%d (system 1)" % port, "--connect")
     # The single USB device is the one opened (at --baud): here it has gone away since.
     one_line(in_process("--udp-port", free_udp_port(), "--baud", "115200", "arm"), EXIT_NO_PORT,
              "serial:%s:115200: no such port" % usb)
     monkeypatch.setattr(mavctl_link, "usb_serial_ports", lambda: [])
     one_line(in_process("--udp-port", free_udp_port(), "arm"), EXIT_NO_PORT, "no vehicle found",
              "--connect")
+
+
+def test_autoconnect_two_vehicles_on_udp(vehicle, monkeypatch, tmp_path):
+    """Two vehicles sending to the ground station's port: listed; --target-system picks one."""
+    port = free_udp_port()
+    vehicle(links=["udpout:127.0.0.1:%d" % port])
+    vehicle(links=["udpout:127.0.0.1:%d" % port], args=["--sysid", "2"], storage=tmp_path / "second")
+    monkeypatch.setattr(mavctl_link, "usb_serial_ports", lambda: [])
+    one_line(in_process("--udp-port", port, "arm"), EXIT_NO_PORT, "several",
+             "udpin:0.0.0.0:%d (system 1), udpin:0.0.0.0:%d (system 2)" % (port, port),
+             "--target-system")
+    r = in_process("--udp-port", port, "--target-system", 2, "params", "get", "MAV_SYS_ID")
+    assert r.returncode == 0 and r.stdout.split() == ["MAV_SYS_ID", "2"], r
 
 
 def test_autoconnect_serial(vehicle, monkeypatch):
