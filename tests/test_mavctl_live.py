@@ -14,7 +14,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
 
 from conftest import PYTHON, ROOT, free_udp_port, recv
-from mavctl_tools import MAVCTL, check_png, mavctl, mavctl_cli_run, ok, refused, signed_board
+from mavctl_tools import MAVCTL, check_png, mavctl, mavctl_cli_run, mavproxy_key, ok, refused, signed_board
 from relay import LossyRelay
 
 RADIO = (51, 68)  # a SiK radio's system and component id
@@ -174,12 +174,6 @@ def test_watch_refusals(tmp_path):
 
 
 # --- signing ----------------------------------------------------------------------------
-
-def mavproxy_key(passphrase):
-    """The key MAVProxy's `signing setup PASSPHRASE` gives a vehicle (its own code)."""
-    from MAVProxy.modules.mavproxy_signing import SigningModule
-    return SigningModule.passphrase_to_key(None, passphrase)
-
 
 def signs_with(v, key, port=None, seconds=5.0):
     """Does the vehicle sign with key? (a pymavlink station holding key hears its HEARTBEAT

@@ -5,7 +5,7 @@ import math
 import struct
 
 from conftest import free_udp_port
-from mavctl_tools import check_png, mavctl, ok, refused
+from mavctl_tools import check_png, mavctl, ok, refused, write_test_plan
 
 WPL = """QGC WPL 110
 0\t1\t0\t16\t0\t0\t0\t0\t47.397742\t8.545594\t488.0\t1
@@ -15,31 +15,6 @@ WPL = """QGC WPL 110
 4\t0\t2\t177\t1\t-1\t0\t0\t0\t0\t0\t1
 5\t0\t3\t21\t0\t0\t0\t0\t47.397742\t8.545594\t0\t1
 """
-HOME = (47.397742, 8.545594, 488.0)
-
-
-def write_test_plan(path):
-    """A .plan: 5 mission items, an inclusion square, an exclusion triangle and circle,
-    two rally points."""
-    from mission_files import Item
-    from plan_files import Plan, write_plan
-
-    def item(seq, command, p1, lat, lon, alt=0.0, frame=3):
-        return Item(seq, 0, frame, command, p1, 0.0, 0.0, 0.0, lat, lon, alt, 1)
-
-    mission = [item(0, 22, 0, 47.397742, 8.545594, 10), item(1, 16, 0, 47.3980001, 8.5460003, 15),
-               item(2, 16, 0, 47.3985, 8.5450, 20), item(3, 177, 1, 0, 0, 0, frame=2),
-               item(4, 21, 0, 47.397742, 8.545594, 0)]
-    square = [(47.3970, 8.5440), (47.3992, 8.5440), (47.3992, 8.5470), (47.3970, 8.5470)]
-    triangle = [(47.3973, 8.5462), (47.3975, 8.5466), (47.3972, 8.5466)]
-    fence = [item(i, 5001, 4, lat, lon) for i, (lat, lon) in enumerate(square)]
-    fence += [item(4 + i, 5002, 3, lat, lon) for i, (lat, lon) in enumerate(triangle)]
-    fence.append(item(7, 5004, 15, 47.3982, 8.5452))
-    rally = [item(0, 5100, 0, 47.3975, 8.5445, 20), item(1, 5100, 0, 47.3988, 8.5465, 20)]
-    write_plan(Plan(mission, fence, rally, home=HOME), str(path))
-    return path
-
-
 def rows(out, part):
     return [line.split() for line in out.splitlines() if line.startswith(part + " ")]
 

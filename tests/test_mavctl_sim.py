@@ -7,8 +7,8 @@ import signal
 from pymavlink import mavutil
 
 from conftest import recv
-from mavctl_tools import Sim, check_png, mavctl, ok, processes_naming, refused, signed_board, wait_until
-from test_mavctl_plot import write_test_plan
+from mavctl_tools import (Sim, check_png, mavctl, mavproxy_key, ok, processes_naming, refused,
+                          signed_board, wait_until, write_test_plan)
 
 
 def test_sim_session_over_its_pty(tmp_path):
@@ -54,7 +54,6 @@ def test_sim_signing_over_its_pty_and_sigterm(tmp_path):
         ok(mavctl(link, "signing", "setup", "over the pty"))
         refused(mavctl(link, "signing", "clear"), 2, "--current")
         m = mavutil.mavlink_connection(sim.device, baud=57600, source_system=250)
-        from test_mavctl_live import mavproxy_key
         m.setup_signing(mavproxy_key("over the pty"), sign_outgoing=True)
         hb = recv(m, "HEARTBEAT", 10, lambda h: h.get_srcSystem() == 1)
         assert hb is not None and hb._signed
