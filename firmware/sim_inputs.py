@@ -13,7 +13,7 @@ STABILIZE, ALT_HOLD, POSITION: MANUAL_CONTROL (x forward, y right, z throttle wi
 hovering, r yaw), else RC override channels 1-4 (roll, pitch, throttle, yaw; PWM 1000-2000,
 1500 centred, a channel not overridden reads centred). Sticks give speeds: full stick is
 the simulator's horizontal speed limit (WP_SPEED / sim_speed), its climb and sink rates,
-and PILOT_YAW_RATE (90 deg/s). The kinematic model has no attitude loop, so STABILIZE
+and a yaw rate of 90 deg/s (a PILOT_YAW_RATE parameter where the board has one). The kinematic model has no attitude loop, so STABILIZE
 flies like ALT_HOLD with the throttle as a climb rate, and POSITION holds still when the
 sticks are centred.
 OFFBOARD: the freshest of SET_POSITION_TARGET_LOCAL_NED, SET_POSITION_TARGET_GLOBAL_INT
