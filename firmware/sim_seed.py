@@ -21,7 +21,13 @@ armed). PREFLIGHT_SET_SENSOR_OFFSETS: sensor 0-6 takes the offsets (kept in
 `offsets[sensor]`, reported by STATUSTEXT), any other is DENIED.
 The board composes it with the simulator (boards/unix.py application(): compose()),
 which also gives DO_CONTROL_VIDEO the simulator's camera.
+
+Setpoint echoes (services/telemetry_seed.py, the seed's set): at 10 Hz the attitude and
+thrust the model flies (ROLL_PITCH_YAW_THRUST_SETPOINT; the speed and rate setpoints
+with zero rates: it holds them) and the point it flies toward
+(GLOBAL_POSITION_SETPOINT_INT, MSL).
 """
+import math
 import struct
 
 from mavstack.compat import ticks_diff
@@ -41,8 +47,11 @@ class SimCalibration:
     NAME = "sim_seed"
     CLOCK = False
 
-    def __init__(self, step_ms=300):
+    def __init__(self, step_ms=300, sim=None):
         self.step_ms = step_ms
+        self.sim = sim
+        self.echoes = None
+        self._echo_at = 0
         self.offsets = {}
         self.calibrated = []  # names of the sensors calibrated, in order
         self._pending = None
@@ -56,6 +65,9 @@ class SimCalibration:
         cal = ep.services.get("calibration")
         if cal is not None:
             cal.handler = self.handle
+        seed = ep.services.get("telemetry_seed")
+        if seed is not None and seed.slots and self.sim is not None:
+            self.echoes = seed
 
     def handle(self, cmd):
         if cmd.command == 242:
@@ -80,6 +92,24 @@ class SimCalibration:
         return _IN_PROGRESS
 
     def tick(self, now):
+        if self.echoes is not None and ticks_diff(now, self._echo_at) >= 100:
+            self._echo_at = now
+            self._echo()
+        self._calibrate(now)
+
+    def _echo(self):
+        # The seed's setpoint echoes at 10 Hz: the attitude and thrust the model flies
+        # (it holds its rates: none commanded), the point it flies toward.
+        sim, e = self.sim, self.echoes
+        e.attitude_setpoint(sim.roll, sim.pitch, sim.heading, sim.throttle)
+        e.speed_setpoint(0.0, 0.0, 0.0, sim.throttle)
+        e.rates_setpoint(0.0, 0.0, 0.0, sim.throttle)
+        target = getattr(sim, "target", None)
+        if target is not None:
+            e.global_setpoint(0, round(target[0] * 1e7), round(target[1] * 1e7), round(target[2] * 1000),
+                              round(math.degrees(sim.heading) * 100) % 36000)
+
+    def _calibrate(self, now):
         if self._pending is None or ticks_diff(now, self._next) < self.step_ms // 2:
             return
         self._next = now
@@ -152,6 +182,4 @@ def compose(ep, sim=None):
             ep.statustext(_INFO, "Video on" if on else "Video off")
             return _ACCEPTED
         seed.on_video = video
-    if "calibration" in ep.services:
-        return ep.add(SimCalibration())
-    return None
+    return ep.add(SimCalibration(sim=sim))

@@ -9,8 +9,9 @@ MAVLink 2 link (services/signing.py: a secret key set, the frame's signature che
       and nothing is sent;
     - an AUTH_KEY that arrives identifies its sender: accepted only in a signed frame,
       it is kept as that link's (`keys[link.index]`), `known[link.index]` says whether it
-      is one of the board's AUTH_KEYS_ACCEPTED (a tuple; None accepts any), and the
-      application's handler sees it: on_key(link, payload). An unsigned one is refused,
+      is one of the board's AUTH_KEYS_ACCEPTED (a tuple; None accepts any), a STATUSTEXT
+      says which ("AUTH_KEY accepted" / "AUTH_KEY not known"), and the application's
+      handler sees it: on_key(link, payload). An unsigned one is refused,
       with a STATUSTEXT, and forgotten.
 Without signing on, no AUTH_KEY goes out and none is taken. Nothing is allocated per
 message: the keys live in buffers made at start-up.
@@ -23,6 +24,7 @@ _MSG_AUTH_KEY = const(7)
 _CMD_REQUEST_MESSAGE = const(512)
 _DENIED = const(2)
 _KEY = const(32)
+_INFO = const(6)  # MAV_SEVERITY_INFO
 
 
 def link_signed(link):
@@ -89,6 +91,7 @@ class Auth:
         i = link.index
         copy(self.keys[i], p, 0, _KEY)
         self.known[i] = self._accepts(self.keys[i])
+        self.ep.statustext(_INFO, b"AUTH_KEY accepted" if self.known[i] else b"AUTH_KEY not known")
         if self.on_key is not None:
             self.on_key(link, p)
 
