@@ -152,6 +152,9 @@ class WatchState:
             text += "  %.1f m/s  heading %d  climb %.1f m/s" % (hud.groundspeed, hud.heading, hud.climb)
         else:
             text += "  %.1f m/s" % (math.hypot(pos.vx, pos.vy) / 100.0)
+        home = self.latest.get("HOME_POSITION")
+        if home is not None:
+            text += "  %.0f m from home" % from_home(pos, home)
         return text
 
     def battery_line(self, now):
@@ -195,6 +198,14 @@ class WatchState:
         if len(shown) < len(names):
             out.append("... %d more" % (len(names) - len(shown)))
         return out
+
+
+def from_home(pos, home):
+    """Metres over the ground from home (equirectangular: fine over a flight's distances)."""
+    k = math.cos(math.radians(home.latitude / 1e7))
+    north = (pos.lat - home.latitude) / 1e7 * 111319.49
+    east = (pos.lon - home.longitude) / 1e7 * 111319.49 * k
+    return math.hypot(north, east)
 
 
 def age(seconds):

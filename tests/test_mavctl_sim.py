@@ -34,7 +34,8 @@ def test_sim_session_over_its_pty(tmp_path):
         assert "MAV_RESULT_ACCEPTED" in ok(mavctl(link, "mode", "1", "3"))  # AUTO: fly the mission
         tlog = tmp_path / "flight.tlog"
         out = ok(mavctl(link, "watch", "--view", "--seconds", "4", "--tlog", tlog))
-        assert "AUTO  ARMED" in out.split("mavctl watch: ")[-1]
+        view = out.split("mavctl watch: ")[-1]
+        assert "AUTO  ARMED" in view and "m from home" in view
         assert "drawn to" in ok(mavctl(None, "log", "plot", tlog, "--png", tmp_path / "f.png",
                                        "--size", "800x600"))
         check_png(tmp_path / "f.png", 800, 600)
