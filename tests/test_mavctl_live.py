@@ -4,6 +4,7 @@ key files, the current key, the links the board trusts), against the unix vehicl
 import hashlib
 import os
 import select
+import signal
 import struct
 import subprocess
 import threading
@@ -88,19 +89,25 @@ def test_watch_view_in_a_pipe_shows_radio_and_measured_drops(vehicle):
     v.check_alive()
 
 
-def test_watch_live_view_on_a_terminal(vehicle):
-    """On a tty the view is drawn in place (cursor home, lines cleared), the cursor is
-    given back at the end; the vehicle's STATUSTEXT is among the last messages."""
+def test_watch_live_view_on_a_terminal_until_ctrl_c(vehicle, tmp_path):
+    """On a tty the view is drawn in place (cursor home, lines cleared) until Ctrl-C, which
+    ends the run with status 0, the cursor given back and the tlog complete; the vehicle's
+    STATUSTEXT is among the last messages."""
     port = free_udp_port()
     v = vehicle(links=["udpout:127.0.0.1:%d" % port])
+    tlog = tmp_path / "tty.tlog"
     master, slave = os.openpty()
     proc = subprocess.Popen([PYTHON, MAVCTL, "--connect", "udpin:127.0.0.1:%d" % port, "watch",
-                             "--seconds", "3"], cwd=ROOT, stdout=slave, stderr=subprocess.PIPE,
+                             "--tlog", tlog], cwd=ROOT, stdout=slave, stderr=subprocess.PIPE,
                             env=dict(os.environ, COLUMNS="120", LINES="40"))
     os.close(slave)
     out = b""
+    interrupted = False
     deadline = time.time() + 60
     while time.time() < deadline:
+        if not interrupted and out.count(b"\x1b[H") >= 5 and b"GCS heard on" in out.split(b"\x1b[H")[-1]:
+            proc.send_signal(signal.SIGINT)  # what Ctrl-C on the terminal sends
+            interrupted = True
         ready, _, _ = select.select([master], [], [], 0.5)
         if ready:
             try:
@@ -113,14 +120,19 @@ def test_watch_live_view_on_a_terminal(vehicle):
         elif proc.poll() is not None:
             break
     os.close(master)
-    assert proc.wait(30) == 0, proc.stderr.read()
+    assert interrupted, out
+    status = proc.wait(30)
+    err = proc.stderr.read().decode()
+    assert status == 0 and "Traceback" not in err, err
     text = out.decode("utf-8", "replace")
-    assert text.count("\x1b[H") >= 3, text  # redrawn twice a second
     assert "\x1b[K" in text and text.rstrip().endswith("\x1b[?25h")
     last = text.split("\x1b[H")[-1]
     assert "STABILIZE  disarmed" in last and "3D fix" in last
     assert "GCS heard on udpout" in last  # a STATUSTEXT
     assert "GLOBAL_POSITION_INT" in last  # the rate table
+    assert "frames logged to" in err
+    log = mavutil.mavlink_connection(str(tlog))
+    assert sum(1 for _ in iter(lambda: log.recv_match(type="HEARTBEAT"), None)) >= 3
     v.check_alive()
 
 
