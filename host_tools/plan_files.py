@@ -74,9 +74,9 @@ class Plan:
         return None
 
 
-def item(seq, frame, command, p1=0.0, x=0.0, y=0.0, z=0.0, params=None):
-    p = params if params is not None else [p1, 0.0, 0.0, 0.0]
-    return Item(seq, 0, frame, command, *p, x, y, z, 1)
+def item(seq, frame, command, p1=0.0, x=0.0, y=0.0, z=0.0):
+    """A fence or rally item; autocontinue 0, as QGroundControl sends them (not a path)."""
+    return Item(seq, 0, frame, command, p1, 0.0, 0.0, 0.0, x, y, z, 0)
 
 
 # --- reading ------------------------------------------------------------------------
