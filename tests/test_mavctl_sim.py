@@ -6,16 +6,21 @@ import signal
 
 from pymavlink import mavutil
 
-from conftest import recv
+from conftest import free_udp_port, recv
 from mavctl_tools import (Sim, check_png, mavctl, mavproxy_key, ok, processes_naming, refused,
                           signed_board, wait_until, write_test_plan)
 
 
 def test_sim_session_over_its_pty(tmp_path):
     storage = tmp_path / "sim-storage"
-    sim = Sim("--storage", storage, "--set", "sim_speed=40", "--set", "sim_climb=20")
+    udp = free_udp_port()
+    sim = Sim("--storage", storage, "--set", "sim_speed=40", "--set", "sim_climb=20",
+              "--link", "udpout:127.0.0.1:%d" % udp)
     try:
         assert processes_naming(str(storage))  # the vehicle runs
+        # The extra link: a ground station on UDP sees the same vehicle.
+        beats = ok(mavctl("udpin:127.0.0.1:%d" % udp, "watch", "HEARTBEAT", "--seconds", "1.5"))
+        assert beats.startswith("HEARTBEAT {type : 2,")
         # pymavlink straight on the device, as any serial ground station.
         m = mavutil.mavlink_connection(sim.device, baud=57600, source_system=250)
         hb = recv(m, "HEARTBEAT", 20, lambda h: h.get_srcSystem() == 1)
