@@ -187,3 +187,15 @@ def test_plugins_missing_or_broken(tmp_path, monkeypatch):
     assert err.getvalue().strip() == ("mavctl: broken_plugin unavailable: No module named "
                                       "'no_such_dependency_here'")
     assert ap.parse_args(["--connect", "udpin:1.2.3.4:5", "params", "get", "X"]).name == "X"
+
+
+def test_flash_is_a_subcommand(tmp_path):
+    """`mavctl flash` takes flash.py's options, its help and its refusals."""
+    r = mavctl("flash", "--board", "unix", "--arch", "x64", "--build-only", tmp_path / "tree")
+    assert r.returncode == 0 and "files" in r.stdout, (r.stdout, r.stderr)
+    assert os.path.isfile(tmp_path / "tree" / "main.py")
+    assert os.path.isfile(tmp_path / "tree" / "mavstack" / "endpoint.mpy")
+    r = mavctl("flash", "-h")
+    assert r.returncode == 0 and "--board" in r.stdout
+    r = mavctl("flash", "--board", "no_such_board", "--build-only", tmp_path / "t2")
+    assert r.returncode == EXIT_USAGE and "no_such_board" in r.stderr
