@@ -118,8 +118,8 @@ class Vehicle:
             if kind == "HEARTBEAT":
                 self.heartbeat_msg = msg
             return msg
-        raise Failure("no HEARTBEAT from a vehicle within %g s: is it powered, on this link, at this baud?" % timeout,
-                      EXIT_NO_HEARTBEAT)
+        raise Failure("no HEARTBEAT from a vehicle within %g s: is it powered, on this link, "
+                      "at this baud?" % timeout, EXIT_NO_HEARTBEAT)
 
     def recv(self, types, timeout, cond=None):
         """Next message from the vehicle whose type is in types (None: any) and that

@@ -165,7 +165,8 @@ class _Reader:
             where = "geoFence.circles[%d]" % i
             inclusion = self.get(entry, "inclusion", where, bool, default=True, required=False)
             circle = self.get(entry, "circle", where, dict)
-            lat, lon = self.latlon(self.get(circle, "center", where + ".circle", list), where + ".circle.center")
+            center = self.get(circle, "center", where + ".circle", list)
+            lat, lon = self.latlon(center, where + ".circle.center")
             radius = self.get(circle, "radius", where + ".circle", float)
             if not radius > 0:
                 raise self.fail(where + ".circle.radius", "a radius > 0 expected")
