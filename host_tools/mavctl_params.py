@@ -14,7 +14,7 @@ from param_files import read_params, write_params
 
 
 def params_list(v, args):
-    for p in v.param_list():
+    for p in all_params(v):
         if args.pattern is None or fnmatch.fnmatchcase(p.name, args.pattern):
             print("%-16s %s" % (p.name, p.text()))
 
