@@ -1,9 +1,8 @@
-"""mavctl's own one-shot subcommands: command, arm/disarm, mode, reboot, stream, watch
-(line output, unless a plug-in registers a live view) and ports. Registered like any
-plug-in (see mavctl_cli); `params` and `mission` are mavctl_params and mavctl_mission."""
+"""mavctl's own one-shot subcommands: command, arm/disarm, mode, reboot, stream and ports.
+Registered like any plug-in (see mavctl_cli); `params` and `mission` are mavctl_params and
+mavctl_mission, `watch` is mavctl_watch."""
 import math
 import sys
-import time
 
 import mavctl_link
 from mavctl_cli import taken
@@ -87,41 +86,6 @@ def check_stream(args):
     args.values = [msgid, interval]
 
 
-# --- watch (line output; a plug-in may register a live view instead) ---------------
-
-def cmd_watch(v, args):
-    v.echo_statustext = False
-    start = time.monotonic()
-    end = start + args.seconds if args.seconds else math.inf
-    counts = {}
-    try:
-        while True:
-            now = time.monotonic()
-            if now >= end:
-                break
-            msg = v.recv(args.wanted, min(0.5, end - now))
-            if msg is not None:
-                if args.rates:
-                    counts[msg.get_type()] = counts.get(msg.get_type(), 0) + 1
-                else:
-                    print(msg, flush=True)
-    except KeyboardInterrupt:
-        pass
-    if args.rates:
-        print_rates(counts, time.monotonic() - start)
-
-
-def print_rates(counts, seconds):
-    print("%-28s %8s %8s" % ("MESSAGE", "COUNT", "HZ"))
-    for name in sorted(counts):
-        print("%-28s %8d %8.2f" % (name, counts[name], counts[name] / max(seconds, 1e-3)))
-    sys.stdout.flush()
-
-
-def check_watch(args):
-    args.wanted = {message_name(message_id(m)) for m in args.messages} or None
-
-
 def cmd_ports(args):
     ports = mavctl_link.usb_serial_ports()
     for port in ports:
@@ -153,11 +117,6 @@ def register(sub):
                        help="base mode: number, MAV_MODE name, or MAV_MODE_FLAG names joined by |")
         p.add_argument("custom", nargs="*", metavar="CUSTOM", help="custom mode [custom sub mode]")
     add("reboot", "reboot the vehicle's autopilot", run=cmd_reboot)
-    p = add("watch", "print telemetry until Ctrl-C", run=cmd_watch, check=check_watch)
-    if p:
-        p.add_argument("messages", nargs="*", metavar="MSG", help="message names (default: all)")
-        p.add_argument("--seconds", type=float, help="stop after this long")
-        p.add_argument("--rates", action="store_true", help="a table of message rates instead of messages")
     p = add("stream", "MAV_CMD_SET_MESSAGE_INTERVAL: a message at HZ", run=cmd_stream, check=check_stream)
     if p:
         p.add_argument("message", metavar="MSG", help="message name or id")
