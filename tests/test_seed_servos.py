@@ -6,7 +6,7 @@ the table, a sender not in control, and no answer to a command for another syste
 import time
 
 from conftest import recv
-from gcs_tools import MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, command, run, statustext
+from gcs_tools import MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MavProxy, command, run, statustext, two_links
 
 PASSKEY = "sesame"
 
@@ -86,3 +86,26 @@ def test_refused_when_not_in_control_or_not_addressed(vehicle):
     m.mav.change_operator_control_send(1, 0, 0, PASSKEY.encode())
     assert recv(m, "CHANGE_OPERATOR_CONTROL_ACK", 5).ack == 0
     assert run(m, 183, 6, 1800) == MAV_RESULT_ACCEPTED
+
+
+def test_mavproxy_relay_and_servo_commands(vehicle, tmp_path):
+    # MAVProxy's relay module as a user types it; pymavlink on the other link watches.
+    v, port, m = two_links(vehicle)
+    assert run(m, 511, 36, 100000) == MAV_RESULT_ACCEPTED  # SERVO_OUTPUT_RAW at 10 Hz
+    mp = MavProxy(port, tmp_path, "relay")
+    try:
+        mp.expect(r"online system 1|Detected vehicle 1:1")
+        mp.say("servo set 9 1700")
+        mp.expect(r"Got COMMAND_ACK: DO_SET_SERVO: ACCEPTED")
+        assert servo_outputs(m, cond=lambda s: s.servo9_raw == 1700) is not None
+        mp.say("servo set 3 1700")  # a motor
+        mp.expect(r"Got COMMAND_ACK: DO_SET_SERVO: DENIED")
+        mp.say("relay set 2 1")
+        mp.expect(r"Got COMMAND_ACK: DO_SET_RELAY: ACCEPTED")
+        assert relays(m) == 4
+        mp.say("servo repeat 10 1100 2 0.5")
+        mp.expect(r"Got COMMAND_ACK: DO_REPEAT_SERVO: ACCEPTED")
+        assert servo_outputs(m, cond=lambda s: s.servo10_raw == 1100) is not None
+        assert servo_outputs(m, cond=lambda s: s.servo10_raw == 1500) is not None
+    finally:
+        mp.close()
