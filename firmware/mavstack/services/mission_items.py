@@ -140,14 +140,15 @@ def _check(m, p, is_int, seq):
     if need & _POS and frame == _FRAME_MISSION:
         return _UNSUPPORTED_FRAME
     return (_xy(m._rec, frame in LOCAL_FRAMES, need, is_int) or _numbers(p, need)
-            or _area(m, need)
-            or (_jump(m, p, seq) if u16(p, 30) == _CMD_DO_JUMP else _ACCEPTED))
+            or (_jump(m, p, seq) if u16(p, 30) == _CMD_DO_JUMP else _area(m, need)))
 
 
 def _area(m, need):
     """A position outside the allowed area (services/geography.py, when the board has
     it) -> INVALID_PARAM5_X / _PARAM6_Y / _PARAM7 for the coordinate outside."""
-    geo = m.ep.services.get("geography") if need & _POS else None
+    if not need & _POS:
+        return _ACCEPTED
+    geo = m.ep.services.get("geography")
     return _ACCEPTED if geo is None else geo.check_item(m._rec, m._rec[30])
 
 
