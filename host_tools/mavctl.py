@@ -18,7 +18,7 @@ Layout (host_tools/):
     mavctl_errors.py    Failure and the exit statuses
     mavctl_params.py    params: get, set, list; .params/.parm files (param_files.py)
     mavctl_mission.py   mission: .plan (plan_files.py) and QGC WPL (mission_files.py)
-    mavctl_commands.py  command, arm, mode, reboot, stream, watch (lines), ports
+    mavctl_commands.py  command, arm, mode, reboot, stream, ports
     mavctl_progress.py  progress bars on a terminal
     mavctl_flash.py     `mavctl flash`, delegated to flash.py
     (the live view, plots, sim and signing are plug-ins of their own: mavctl_cli.PLUGINS)

@@ -22,7 +22,7 @@ Plug-in convention. PLUGINS names modules (importable from host_tools/); each ex
   `mission`, `log`, `signing`...), creating it if no module did yet, so modules can add
   actions to each other's subcommands in any order.
 - Modules are registered in PLUGINS order; a subcommand name already taken is kept by the
-  earlier module (mavctl's own come last, so a plug-in can take over `watch`). A module
+  earlier module (mavctl's own come last, so a plug-in may take over one of theirs). A module
   that is not there is skipped; one that fails to import is skipped with a warning.
 - Progress bars: mavctl_progress.progress(total, what) (terminal only, quiet in pipes).
 """
