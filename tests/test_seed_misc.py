@@ -123,7 +123,9 @@ def test_remaining_commands(vehicle):
     m.mav.safety_set_allowed_area_send(1, 1, 0, 47.0, 8.0, 0.0, 47.5, 8.6, 100.0)
     assert recv(m, "SAFETY_ALLOWED_AREA", 5) is not None
     assert run(m, 252, 0, 3, 0, 0, 48.0, 8.5, 20.0) == MAV_RESULT_DENIED
-    assert statustext(m, "outside the allowed area") is not None
+    assert statustext(m, "Target outside the allowed area") is not None
+    m.mav.command_int_send(1, 1, 6, 252, 0, 0, 0, 3, 0, 0, 480000000, 85000000, 20.0)  # as COMMAND_INT
+    assert recv(m, "COMMAND_ACK", 5, lambda a: a.command == 252).result == MAV_RESULT_DENIED
     assert run(m, 252, 0, 3, 0, 0, 47.2, 8.5, 20.0) == MAV_RESULT_UNSUPPORTED
     assert run(m, 80, 3, 0, 0, 0, 47.4, 8.55, 20.0) == MAV_RESULT_ACCEPTED
     assert run(m, 80, 9) == MAV_RESULT_DENIED

@@ -14,6 +14,10 @@ The area is enforced through this service's API, for the others:
     geo.allows(lat_e7, lon_e7, alt_mm)   True inside the area (or without one); alt_mm
                                          None: the altitude is not checked
     geo.allows_local(x_m, y_m, z_m)      the same in the local frame (a local area)
+    geo.allows_degrees(lat, lon, alt_m)  the same from degrees and metres (a simulator)
+    geo.allows_command(cmd[, frame])     a command's target (param5-7, COMMAND_LONG or
+                                         _INT): False, with a STATUSTEXT, when outside;
+                                         the caller answers DENIED (reposition, goto)
     geo.check_item(rec, frame)           a mission record (mission_store.py's layout) ->
                                          0, or MAV_MISSION_INVALID_PARAM5_X / _PARAM6_Y /
                                          _PARAM7 for the coordinate that is outside
@@ -127,6 +131,37 @@ class Geography:
             if not _between(self._bounds, o, v >> 16, v & 0xFFFF):
                 return False
         return True
+
+    def allows_degrees(self, lat, lon, alt_m=None):
+        """allows() for degrees and metres (floats: for the simulator, not a hot path)."""
+        if not self.area_set or self.area_local:
+            return True
+        return self.allows(int(round(lat * 1e7)), int(round(lon * 1e7)),
+                           None if alt_m is None else int(round(alt_m * 1000)))
+
+    def allows_command(self, cmd, frame=-1):
+        """Is the position of a COMMAND_LONG / COMMAND_INT (param5-7: x, y, z in the
+        command's frame; COMMAND_LONG's frame given as `frame`, else global) inside the
+        area? A refusal is told in a STATUSTEXT; the caller answers DENIED. Unset x/y
+        (NaN, or COMMAND_INT's 0/INT32_MAX) mean "here" and pass. Makes floats: for
+        commands, not for setpoints at rate (allows() there)."""
+        if not self.area_set:
+            return True
+        f = cmd.frame if cmd.is_int else (frame if frame >= 0 else 0)
+        z = cmd.float(7) if cmd.finite(7) else None
+        if cmd.nan(5) or cmd.nan(6):
+            ok = True
+        elif f in LOCAL_FRAMES:
+            ok = self.allows_local(cmd.float(5), cmd.float(6), z)
+        elif cmd.is_int:
+            x, y = cmd.int(5), cmd.int(6)
+            ok = (x == 0 and y == 0) or x == 0x7FFFFFFF or self.allows(x, y, None if z is None else int(z * 1000))
+        else:
+            ok = self.allows_degrees(cmd.float(5), cmd.float(6), z)
+        if not ok:
+            self.refused += 1
+            self.ep.statustext(WARNING, b"Target outside the allowed area")
+        return ok
 
     def check_item(self, rec, frame):
         """A mission record's position against the area -> 0 or the MAV_MISSION_RESULT

@@ -107,7 +107,6 @@ class SeedCommands:
         where = cmd.int(2) if cmd.finite(2) else _GOTO_HOLD_AT_CURRENT
         if where == _GOTO_HOLD_AT_SPECIFIED:
             if not self._inside(cmd):
-                self.ep.statustext(WARNING, b"Goto: outside the allowed area")
                 return _DENIED
             if self.on_goto is None:
                 self.ep.statustext(WARNING, b"Goto: no guided flight to a position")
@@ -134,17 +133,7 @@ class SeedCommands:
 
     def _inside(self, cmd):
         geo = self.ep.services.get("geography")
-        if geo is None or not geo.area_set:
-            return True
-        frame = cmd.int(3) if cmd.finite(3) else 0
-        if cmd.is_int:
-            frame = cmd.frame
-        if frame in (1, 4, 7, 8, 9):
-            return geo.allows_local(cmd.float(5), cmd.float(6), cmd.float(7) if cmd.finite(7) else None)
-        lat = int(cmd.float(5) * 1e7) if not cmd.is_int else cmd.int(5)
-        lon = int(cmd.float(6) * 1e7) if not cmd.is_int else cmd.int(6)
-        alt = int(cmd.float(7) * 1000) if cmd.finite(7) else None
-        return geo.allows(lat, lon, alt)
+        return geo is None or geo.allows_command(cmd, cmd.int(3) if cmd.finite(3) else 0)
 
     def _roi(self, cmd):
         if not cmd.finite(1) or not 0 <= cmd.int(1) <= 4:
