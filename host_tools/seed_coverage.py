@@ -15,7 +15,10 @@ Nothing in the table is written by hand. It is read from:
   - services/seed_commands.py REASONS: why a command is refused;
   - the tests: a test names what it proves with a comment `# seed: NAME[, NAME ...]`;
     without one, the first test that names the message or command (`"NAME"`,
-    `name_send(`, `MAV_CMD_NAME`) is given.
+    `name_send(`, `name_encode(`, `MAVLink_name_message`, `"name"`, a bench frame
+    `.frame(ID`, `MAV_CMD_NAME`, a command's id
+    in a test plan's Item or a run()/command() call; a helper in a test file counts for
+    the test that uses it) is given.
 A row that says "not handled" without a reason makes the generator fail.
 """
 import ast
@@ -148,21 +151,37 @@ def test_index():
             tree = ast.parse(src)
         except SyntaxError:
             continue
+        file_tests, helpers = [], []
         for node in tree.body:
+            if not isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+                continue
+            text = "\n".join(lines[node.lineno - 1:node.end_lineno])
             if isinstance(node, ast.FunctionDef) and node.name.startswith("test_"):
-                text = "\n".join(lines[node.lineno - 1:node.end_lineno])
                 marks = set()
                 for m in re.findall(r"#\s*seed:\s*([A-Z0-9_, ]+)", text):
                     marks.update(x.strip() for x in m.split(",") if x.strip())
-                tests.append(("tests/%s::%s" % (fname, node.name), text, marks))
+                file_tests.append(("tests/%s::%s" % (fname, node.name), text, marks))
+            else:
+                helpers.append((node.name, text))
+        tests += file_tests
+        # A helper (a station class, a fixture) serves its file's tests: its text counts
+        # for the first test that names it, else the file's first test.
+        for name, text in helpers:
+            if file_tests:
+                users = [t for t in file_tests if re.search(r"\b%s\b" % name, t[1])]
+                tests.append(((users or file_tests)[0][0], text, set()))
     return tests
 
 
-def proving_test(name, tests, cmd=False):
+def proving_test(name, tests, cmd=False, cid=None):
     for tid, _, marks in tests:
         if name in marks:
             return tid
-    pats = [r"MAV_CMD_%s\b" % name] if cmd else [r'"%s"' % name, r"\b%s_send\(" % name.lower()]
+    low = name.lower()
+    pats = [r"MAV_CMD_%s\b" % name] + ([r"\bItem\(\s*\d+,\s*%d\b" % cid, r"\b(run|command)\(\w+,\s*%d\b" % cid]
+                                        if cid is not None else []) if cmd else [r'"%s"' % name, r"\b%s_(send|encode)\(" % low,
+                                                  r"MAVLink_%s_message\b" % low, r'"%s"' % low,
+                                                  r"\.frame\(%d\b" % cid]
     pats.append(r"#.*\b%s\b" % name)
     pats.append(r"\b%s\b" % name)
     for pat in pats:
@@ -205,7 +224,7 @@ def message_rows(msgs, eps, sent, tests):
             what = ["NOT HANDLED"]
         dialects = "both" if common_too else "seed2012 (today's common: another message or none)"
         rows.append((msgid, name, direction, "; ".join(what), services, dialects,
-                     proving_test(name, tests)))
+                     proving_test(name, tests, cid=msgid)))
     return rows
 
 
@@ -224,7 +243,7 @@ def command_rows(cmds, eps, tests, in_missions, reasons):
         if not what:
             what = ["NOT HANDLED"]
         rows.append((cid, name, "in", "; ".join(what), ", ".join(handlers) or "missions (mission_items)",
-                     proving_test(name, tests, cmd=True)))
+                     proving_test(name, tests, cmd=True, cid=cid)))
     return rows
 
 
