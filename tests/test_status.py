@@ -61,9 +61,11 @@ def test_life_cycle_boot_standby_active(vehicle, tmp_path):
         assert vehicle_heartbeat(m, lambda h: h.system_status == MAV_STATE_STANDBY) is not None
         assert run(m, 400, 1) == MAV_RESULT_ACCEPTED
         hb = vehicle_heartbeat(m, lambda h: h.base_mode & ARMED)
-        assert hb.system_status == MAV_STATE_ACTIVE
+        assert hb.system_status == MAV_STATE_STANDBY  # armed, but on the ground (the simulator says)
         assert hb.get_msgbuf()[0] == 0xFD
-        assert run(m, 400, 0) == MAV_RESULT_ACCEPTED
+        assert run(m, 22, 0, 0, 0, 0, 0, 0, 3) in (0, 5)  # NAV_TAKEOFF to 3 m: ACCEPTED or IN_PROGRESS
+        assert vehicle_heartbeat(m, lambda h: h.system_status == MAV_STATE_ACTIVE, timeout=10) is not None
+        assert run(m, 400, 0, 21196) == MAV_RESULT_ACCEPTED  # forced: disarmed in the air (it falls)
         hb = vehicle_heartbeat(m, lambda h: not h.base_mode & ARMED)
         assert hb.system_status == MAV_STATE_STANDBY
     finally:

@@ -24,7 +24,9 @@ Setting a mode, whichever way it comes, ends in status.set_mode -> find():
   65536 up a PX4 encoding (never ambiguous: a PX4 main mode is at least 1);
   MAV_CMD_DO_SET_MODE carries PX4's main and sub mode in param2 and param3, so on a
   link in PX4's convention they are read that way;
-- base-mode flags alone: the row whose flags match (AUTO, GUIDED, STABILIZE ...);
+- base-mode flags alone: the row whose flags match (AUTO, GUIDED, STABILIZE ...); so is
+  custom mode 0 with AUTO or GUIDED among the flags (what a generic station sends for
+  "AUTO"; ArduPilot's convention names STABILIZE with the custom flag alone);
 - MAV_CMD_DO_SET_STANDARD_MODE: the row of that MAV_STANDARD_MODE.
 Anything else is refused. A board without a table keeps flag-only modes.
 Where the dialect has them, AVAILABLE_MODES (all, or one by index: REQUEST_MESSAGE
@@ -46,6 +48,7 @@ _PX4_MANUAL = const(1)  # PX4's MANUAL main mode: a multicopter's is stabilized
 _PX4_STABILIZED = const(7)
 _FLAG_CHOICE = const(0x5C)  # MANUAL_INPUT | STABILIZE | GUIDED | AUTO: what picks a row
 _NOT_USER_SELECTABLE = const(2)  # MAV_MODE_PROPERTY
+_AUTO_OR_GUIDED = const(12)
 
 _MSG_HEARTBEAT = const(0)
 _MSG_AVAILABLE_MODES = const(435)
@@ -134,7 +137,7 @@ class Modes:
         table = self.table
         if not table:
             return -2
-        if flags & 1:  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+        if flags & 1 and (custom or not flags & _AUTO_OR_GUIDED):  # CUSTOM_MODE_ENABLED
             return self._by_px4(custom) if custom >= 0x10000 else self.by_number(custom)
         return self._by_flags(flags & _FLAG_CHOICE)
 
