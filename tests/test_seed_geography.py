@@ -109,3 +109,23 @@ def test_local_offset_is_a_slot(vehicle):
     m = v.gcs()
     result, msg = request(m, 89)
     assert result == MAV_RESULT_ACCEPTED and msg is None  # nothing written yet: nothing sent
+
+
+def test_corrupt_store_is_cleared_and_said(tmp_path):
+    import os
+    import sys
+
+    from conftest import ROOT
+
+    sys.path.insert(0, os.path.join(ROOT, "tests", "mpy"))
+    from harness import Bench
+
+    (tmp_path / "geography").write_bytes(b"\x03" * 40)  # flags say both, CRC wrong
+    b = Bench(services=("status", "commands", "geography"), storage=str(tmp_path))
+    geo = b.ep.services["geography"]
+    assert not geo.origin_set and not geo.area_set
+    assert geo.allows(0, 0, 0)
+    texts = []
+    b.watch = lambda msgid, p: texts.append(bytes(p[1:51]).rstrip(b"\0")) if msgid == 253 else None
+    b.run(20, 50)
+    assert b"Origin and allowed area corrupt: cleared" in texts
