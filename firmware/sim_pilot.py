@@ -80,7 +80,7 @@ class FlightPilot:
         self.fs_left = None  # seconds of failsafe hold left before RTL
         self.fs_reason = None
         self.fs_mode = None  # the mode flown when the input was lost
-        self.paused_mode = None  # DO_PAUSE_CONTINUE: the mode to continue in
+        self.paused_mode = None  # DO_PAUSE_CONTINUE: (mode, hold_at, speed, yaw) to continue with
         self.landed = ON_GROUND
         self._airborne = None
         self._fly = {"TAKEOFF": self._fly_takeoff, "LOITER": self._fly_hold, "GUIDED": self._fly_hold,
@@ -465,14 +465,16 @@ class FlightPilot:
             if refused is not None:
                 return refused
             if self.mode != "LOITER":
-                mode = self.mode
+                paused = (self.mode, self.hold_at, self.guided_speed, self.guided_yaw)
                 self._set_mode("LOITER")
-                self.paused_mode = mode
+                self.paused_mode = paused
             return _ACCEPTED
         if self.paused_mode is None:
             return self._refuse(_DENIED, "Continue: nothing paused")
-        mode, self.paused_mode = self.paused_mode, None
+        (mode, hold_at, speed, yaw), self.paused_mode = self.paused_mode, None
         self._set_mode(mode)
+        if mode == "GUIDED":  # on to where it was going
+            self.hold_at, self.guided_speed, self.guided_yaw = hold_at, speed, yaw
         return _ACCEPTED
 
     def _cmd_mission_start(self, cmd):

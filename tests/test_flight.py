@@ -1,0 +1,295 @@
+"""The simulated vehicle flies what its pilot asks (firmware/sim_pilot.py), seen by a
+pymavlink ground station over UDP: takeoff, hold, land, reposition, speed, RTL, mode
+changes with the same effect as the commands, MISSION_START, failsafes, and telemetry
+telling the truth throughout (EXTENDED_SYS_STATE landed_state, HEARTBEAT system_status,
+GLOBAL_POSITION_INT). Fast simulation: 20 m/s, 10 m/s climb."""
+import math
+import time
+
+import gcs_tools
+from conftest import recv
+from gcs_tools import MAV_RESULT_ACCEPTED as ACCEPTED, MAV_RESULT_DENIED as DENIED, MAV_RESULT_FAILED as FAILED
+from mission_gcs import LAT0, LON0, Item, MissionClient
+
+IN_PROGRESS = 5
+ON_GROUND, IN_AIR, TAKEOFF, LANDING = 1, 2, 3, 4
+STANDBY, ACTIVE = 3, 4
+ARMED = 128
+# ArduPilot's numbers (the unix board's FLIGHT_MODES), as a pymavlink link reads them.
+AUTO, GUIDED, LOITER, RTL, LAND = 3, 4, 5, 6, 9
+FAST = ("--set", "sim_speed=20", "--set", "sim_climb=10")
+
+
+def fly_vehicle(vehicle, *args):
+    v = vehicle(args=list(FAST + args))
+    return v, v.gcs()
+
+
+def heartbeat(m, cond=None, timeout=10.0):
+    return gcs_tools.vehicle_heartbeat(m, cond, timeout)
+
+
+def set_mode(m, number):
+    """SET_MODE with an ArduPilot-numbered custom mode (no ACK: the heartbeat tells)."""
+    m.mav.set_mode_send(m.target_system, 1, number)
+    return heartbeat(m, lambda h: h.custom_mode == number)
+
+
+def wait_ack(m, cmd, timeout=20.0):
+    """The final COMMAND_ACK of a command (IN_PROGRESS ones counted) -> (result, in_progress seen)."""
+    progress = 0
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        a = gcs_tools.listen(m, "COMMAND_ACK", deadline - time.time(), lambda a: a.command == cmd)
+        if a is None:
+            break
+        if a.result != IN_PROGRESS:
+            return a.result, progress
+        progress += 1
+    return None, progress
+
+
+def takeoff(m, alt=10.0):
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED  # arm
+    gcs_tools.command(m, 22, 0, 0, 0, 0, 0, 0, alt)
+    result, progress = wait_ack(m, 22)
+    assert (result, progress > 0) == (ACCEPTED, True)
+
+
+def position(m, cond=None, timeout=20.0):
+    return gcs_tools.listen(m, "GLOBAL_POSITION_INT", timeout, cond)
+
+
+def metres(lat_e7, lon_e7, lat0_e7, lon0_e7):
+    dn = (lat_e7 - lat0_e7) / 1e7 * math.pi / 180 * 6378137.0
+    de = (lon_e7 - lon0_e7) / 1e7 * math.pi / 180 * 6378137.0 * math.cos(math.radians(lat0_e7 / 1e7))
+    return math.hypot(dn, de)
+
+
+def landed_states(m, until, timeout=30.0):
+    """EXTENDED_SYS_STATE landed_state values, repeats folded, until `until` is seen ->
+    (states, {command: final result} of the COMMAND_ACKs that came meanwhile)."""
+    seen, acks = [], {}
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        s = gcs_tools.listen(m, ["EXTENDED_SYS_STATE", "COMMAND_ACK"], deadline - time.time())
+        if s is None:
+            break
+        if s.get_type() == "COMMAND_ACK":
+            if s.result != IN_PROGRESS:
+                acks[s.command] = s.result
+            continue
+        if not seen or seen[-1] != s.landed_state:
+            seen.append(s.landed_state)
+        if s.landed_state == until and len(seen) > 1:
+            break
+    return seen, acks
+
+
+def test_takeoff_hold_and_land(vehicle):
+    v, m = fly_vehicle(vehicle)
+    assert heartbeat(m).system_status == STANDBY
+    # Disarmed: refused, and said why.
+    assert gcs_tools.run(m, 22, 0, 0, 0, 0, 0, 0, 10.0) == DENIED
+    assert gcs_tools.statustext(m, "Takeoff: disarmed") is not None
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    assert heartbeat(m, lambda h: h.base_mode & ARMED).system_status == STANDBY  # armed, on the ground
+    gcs_tools.command(m, 22, 0, 0, 0, 0, 0, 0, 10.0)
+    result, progress = wait_ack(m, 22)
+    assert result == ACCEPTED and progress >= 1  # IN_PROGRESS first, ACCEPTED at the altitude
+    pos = position(m)
+    assert abs(pos.relative_alt - 10000) < 600
+    hb = heartbeat(m, lambda h: h.custom_mode == LOITER)  # holds once there
+    assert hb is not None and hb.system_status == ACTIVE
+    assert recv(m, "EXTENDED_SYS_STATE", 5, lambda s: s.landed_state == IN_AIR) is not None
+    vfr = recv(m, "VFR_HUD", 5)
+    assert abs(vfr.alt - 498.0) < 0.6 and vfr.groundspeed < 0.1
+    # Flying: a second takeoff fails (ArduPilot's answer), disarming is refused.
+    assert gcs_tools.run(m, 22, 0, 0, 0, 0, 0, 0, 20.0) == FAILED
+    assert gcs_tools.statustext(m, "Takeoff: already flying") is not None
+    assert gcs_tools.run(m, 400, 0) == DENIED
+    time.sleep(1.0)
+    assert abs(position(m).relative_alt - 10000) < 600  # still holding
+    # Land: IN_PROGRESS, down, disarmed, ACCEPTED on touchdown.
+    gcs_tools.command(m, 21)
+    result, progress = wait_ack(m, 21)
+    assert result == ACCEPTED and progress >= 1
+    hb = heartbeat(m, lambda h: not h.base_mode & ARMED)
+    assert hb.custom_mode == LAND and hb.system_status == STANDBY
+    assert recv(m, "EXTENDED_SYS_STATE", 5, lambda s: s.landed_state == ON_GROUND) is not None
+    assert abs(position(m).relative_alt) < 200
+    v.check_alive()
+
+
+def test_landed_state_goes_through_takeoff_in_air_landing(vehicle):
+    v, m = fly_vehicle(vehicle, "--set", "sim_climb=2")
+    gcs_tools.command(m, 511, 245, 100000)  # EXTENDED_SYS_STATE at 10 Hz
+    assert wait_ack(m, 511)[0] == ACCEPTED
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    assert recv(m, "EXTENDED_SYS_STATE", 5).landed_state == ON_GROUND
+    gcs_tools.command(m, 22, 0, 0, 0, 0, 0, 0, 6.0)
+    seen, acks = landed_states(m, IN_AIR)
+    assert seen[-2:] == [TAKEOFF, IN_AIR] and acks.get(22, ACCEPTED) == ACCEPTED
+    time.sleep(0.5)
+    gcs_tools.command(m, 21)
+    seen, acks = landed_states(m, ON_GROUND)
+    assert seen == [IN_AIR, LANDING, ON_GROUND] and acks.get(21, ACCEPTED) == ACCEPTED
+
+
+def test_reposition_speed_and_return(vehicle):
+    v, m = fly_vehicle(vehicle)
+    # On the ground: nowhere to go yet.
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    m.mav.command_int_send(1, 1, 6, 192, 0, 0, -1, 1, 0, float("nan"), LAT0 + 9000, LON0, 15.0)
+    assert gcs_tools.ack(m, 192).result == DENIED
+    assert gcs_tools.statustext(m, "Reposition: on the ground") is not None
+    takeoff(m)
+    # 100 m north at 15 m above home (relative frame), at the default speed.
+    m.mav.command_int_send(1, 1, 6, 192, 0, 0, -1, 1, 0, float("nan"), LAT0 + 9000, LON0, 15.0)
+    assert gcs_tools.ack(m, 192).result == ACCEPTED
+    assert heartbeat(m, lambda h: h.custom_mode == GUIDED) is not None
+    moving = position(m, lambda p: math.hypot(p.vx, p.vy) > 1500)
+    assert moving is not None and moving.vx > 0  # north
+    there = position(m, lambda p: metres(p.lat, p.lon, LAT0 + 9000, LON0) < 1.0 and abs(p.relative_alt - 15000) < 500)
+    assert there is not None
+    # DO_CHANGE_SPEED: 3 m/s; then 20 m east, latitude kept (INT32_MAX), altitude in AMSL.
+    assert gcs_tools.run(m, 178, 1, 3.0, -1) == ACCEPTED
+    m.mav.command_int_send(1, 1, 5, 192, 0, 0, -1, 1, 0, float("nan"), 2147483647, LON0 + 2650, 488.0 + 15.0)
+    assert gcs_tools.ack(m, 192).result == ACCEPTED
+    vfr = gcs_tools.listen(m, "VFR_HUD", 10, lambda h: h.groundspeed > 1.0)
+    assert vfr is not None and abs(vfr.groundspeed - 3.0) < 0.3
+    assert gcs_tools.run(m, 178, 1, -5.0, -1) == DENIED  # a negative speed
+    # RTL: up to RTL_ALT (15 m), home, down, disarmed.
+    assert gcs_tools.run(m, 178, 1, -2, -1) == ACCEPTED  # back to the parameter's speed
+    assert gcs_tools.run(m, 20) == ACCEPTED
+    assert heartbeat(m, lambda h: h.custom_mode == RTL) is not None
+    hb = heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=40)
+    assert hb is not None and hb.system_status == STANDBY
+    pos = position(m)
+    assert metres(pos.lat, pos.lon, LAT0, LON0) < 2.5 and abs(pos.relative_alt) < 200
+    assert gcs_tools.run(m, 20) == DENIED  # disarmed
+    v.check_alive()
+
+
+def test_mode_changes_do_what_the_commands_do(vehicle):
+    """A ground station's SET_MODE: LOITER holds, GUIDED holds, LAND lands and disarms,
+    RTL returns; NAV_LOITER_UNLIM holds; DO_PAUSE_CONTINUE pauses a reposition and goes on."""
+    v, m = fly_vehicle(vehicle)
+    takeoff(m)
+    m.mav.command_int_send(1, 1, 6, 192, 0, 0, 2.0, 1, 0, float("nan"), LAT0 + 9000, LON0, 10.0)
+    assert gcs_tools.ack(m, 192).result == ACCEPTED
+    assert position(m, lambda p: metres(p.lat, p.lon, LAT0, LON0) > 3.0) is not None
+    # Pause: held where it is; continue: on to the point.
+    assert gcs_tools.run(m, 193, 0) == ACCEPTED
+    assert heartbeat(m, lambda h: h.custom_mode == LOITER) is not None
+    a = position(m)
+    time.sleep(1.0)
+    b = position(m)
+    assert metres(a.lat, a.lon, b.lat, b.lon) < 0.5
+    assert gcs_tools.run(m, 193, 1) == ACCEPTED
+    assert heartbeat(m, lambda h: h.custom_mode == GUIDED) is not None
+    assert position(m, lambda p: metres(p.lat, p.lon, a.lat, a.lon) > 1.0) is not None
+    assert gcs_tools.run(m, 193, 1) == DENIED  # nothing paused now
+    # Mode LOITER by SET_MODE: holds.
+    set_mode(m, LOITER)
+    a = position(m)
+    time.sleep(1.0)
+    assert metres(a.lat, a.lon, position(m).lat, position(m).lon) < 0.5
+    assert gcs_tools.run(m, 17) == ACCEPTED  # NAV_LOITER_UNLIM: here
+    # Mode RTL by SET_MODE: home (back over it, then down).
+    set_mode(m, RTL)
+    assert position(m, lambda p: metres(p.lat, p.lon, LAT0, LON0) < 2.5, timeout=20) is not None
+    # Mode LAND by SET_MODE before touchdown: down here, disarmed.
+    set_mode(m, LAND)
+    assert heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=30) is not None
+    assert recv(m, "EXTENDED_SYS_STATE", 5, lambda s: s.landed_state == ON_GROUND) is not None
+    v.check_alive()
+
+
+MISSION = [Item(3, 22, 0, 1, 0, 0, 0, float("nan"), 0, 0, 10.0),
+           Item(3, 16, 0, 1, 0.5, 1.0, 0, float("nan"), LAT0 + 4500, LON0, 10.0),
+           Item(3, 16, 0, 1, 0, 1.0, 0, float("nan"), LAT0 + 4500, LON0 + 4500, 12.0),
+           Item(3, 21, 0, 1, 0, 0, 0, float("nan"), LAT0 + 4500, LON0 + 4500, 0.0)]
+
+
+def test_mission_start(vehicle):
+    v, m = fly_vehicle(vehicle)
+    assert gcs_tools.run(m, 300, 0, 0) == DENIED
+    assert gcs_tools.statustext(m, "Mission: no mission") is not None
+    m.mav.set_mode_send(1, 1, AUTO)  # the mode, likewise
+    assert gcs_tools.statustext(m, "Mode: no mission") is not None
+    assert MissionClient(m).upload(MISSION) == 0
+    assert gcs_tools.run(m, 300, 0, 0) == DENIED  # disarmed
+    assert gcs_tools.statustext(m, "Mission: disarmed") is not None
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    assert gcs_tools.run(m, 300, 0, 0) == ACCEPTED
+    reached, modes = [], set()
+    deadline = time.time() + 40
+    while time.time() < deadline and len(reached) < len(MISSION):
+        r = gcs_tools.listen(m, ["MISSION_ITEM_REACHED", "HEARTBEAT"], deadline - time.time())
+        if r is not None and r.get_type() == "HEARTBEAT":
+            modes.add(r.custom_mode)
+        elif r is not None and r.seq not in reached:
+            reached.append(r.seq)
+    assert reached == [0, 1, 2, 3] and AUTO in modes
+    hb = heartbeat(m, lambda h: not h.base_mode & ARMED)  # landed by the mission: disarmed
+    assert hb is not None and hb.system_status == STANDBY
+    cur = gcs_tools.listen(m, "MISSION_CURRENT", 5)
+    assert cur.mission_state == 5  # complete
+    pos = position(m)
+    assert metres(pos.lat, pos.lon, LAT0 + 4500, LON0 + 4500) < 2.5 and abs(pos.relative_alt) < 200
+    v.check_alive()
+
+
+def test_mode_auto_flies_the_mission_and_holds_at_its_end(vehicle):
+    v, m = fly_vehicle(vehicle)
+    assert MissionClient(m).upload(MISSION[:3]) == 0
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    set_mode(m, AUTO)
+    assert gcs_tools.statustext(m, "Mission: complete, holding", timeout=30) is not None
+    hb = heartbeat(m, lambda h: h.custom_mode == LOITER)
+    assert hb.base_mode & ARMED and hb.system_status == ACTIVE
+    assert abs(position(m).relative_alt - 12000) < 600
+
+
+def test_guided_mission_item_goes_there(vehicle):
+    """ArduPilot's guided waypoint (MAVProxy's `guided`): MISSION_ITEM_INT with current 2;
+    current 3 changes the altitude. Refused (MISSION_ACK DENIED) on the ground."""
+    v, m = fly_vehicle(vehicle)
+    m.mav.mission_item_int_send(1, 1, 0, 6, 16, 2, 0, 0, 0, 0, 0, LAT0 + 4500, LON0, 12.0)
+    assert recv(m, "MISSION_ACK", 5).type == 14  # MAV_MISSION_DENIED
+    takeoff(m)
+    m.mav.mission_item_int_send(1, 1, 0, 6, 16, 2, 0, 0, 0, 0, 0, LAT0 + 4500, LON0, 12.0)
+    assert recv(m, "MISSION_ACK", 5).type == 0
+    assert heartbeat(m, lambda h: h.custom_mode == GUIDED) is not None
+    assert position(m, lambda p: metres(p.lat, p.lon, LAT0 + 4500, LON0) < 1.0 and abs(p.relative_alt - 12000) < 500) is not None
+    m.mav.mission_item_int_send(1, 1, 0, 6, 16, 3, 0, 0, 0, 0, 0, 0, 0, 20.0)
+    assert recv(m, "MISSION_ACK", 5).type == 0
+    assert position(m, lambda p: metres(p.lat, p.lon, LAT0 + 4500, LON0) < 1.0 and abs(p.relative_alt - 20000) < 500) is not None
+    assert MissionClient(m).count().count == 0  # not a plan's item
+
+
+def test_gcs_loss_holds_then_returns(vehicle):
+    v, m = fly_vehicle(vehicle, "--set", "gcs_timeout_ms=1000")
+    assert gcs_tools.run(m, 180, 1, 0) is not None  # (a command: the vehicle hears us)
+    m.mav.param_set_send(1, 1, b"FS_HOLD_S", 1.0, 9)
+    assert recv(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == 1.0
+    takeoff(m)
+    # Silence: no heartbeats from here on (recv only).
+    assert recv(m, "STATUSTEXT", 10, lambda s: "Failsafe: GCS lost: holding" in s.text) is not None
+    assert recv(m, "HEARTBEAT", 5, lambda h: h.custom_mode == LOITER) is not None
+    assert recv(m, "STATUSTEXT", 10, lambda s: "Failsafe: GCS lost: returning" in s.text) is not None
+    assert recv(m, "HEARTBEAT", 5, lambda h: h.custom_mode == RTL) is not None
+    assert recv(m, "HEARTBEAT", 30, lambda h: not h.base_mode & ARMED) is not None  # home, landed
+
+
+def test_gcs_back_before_the_hold_ends_stays_holding(vehicle):
+    v, m = fly_vehicle(vehicle, "--set", "gcs_timeout_ms=1000")
+    m.mav.param_set_send(1, 1, b"FS_HOLD_S", 4.0, 9)
+    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == 4.0
+    takeoff(m)
+    assert recv(m, "STATUSTEXT", 10, lambda s: "Failsafe: GCS lost: holding" in s.text) is not None
+    assert gcs_tools.statustext(m, "Failsafe: GCS back: holding here") is not None
+    deadline = time.time() + 6
+    while time.time() < deadline:
+        assert gcs_tools.listen(m, "HEARTBEAT", 2, lambda h: h.get_srcSystem() == 1).custom_mode == LOITER
