@@ -15,6 +15,7 @@ import pytest
 import serial
 
 from conftest import ROOT, free_udp_port
+from pty_relay import PtyRelay
 
 sys.path.insert(0, os.path.join(ROOT, "host_tools"))
 import mavctl_cli  # noqa: E402
@@ -146,11 +147,10 @@ def test_autoconnect_two_vehicles_on_udp(vehicle, monkeypatch, tmp_path):
 
 def test_autoconnect_serial(vehicle, monkeypatch):
     """The one USB serial device found is the link (a pty pair standing in for the cable)."""
-    from test_host_tools import PtyCable
-    cable = PtyCable()
+    cable = PtyRelay(rate=0.0)  # a cable that loses nothing
     try:
-        vehicle_end, gcs_end = cable.ends
-        vehicle(links=["serial:%s:57600" % vehicle_end])
+        gcs_end = cable.gcs_dev
+        vehicle(links=["serial:%s:57600" % cable.vehicle_dev])
         monkeypatch.setattr(mavctl_link, "usb_serial_ports", lambda: [gcs_end])
         r = in_process("--udp-port", free_udp_port(), "params", "get", "SIM_SPEED")
         assert r.returncode == 0 and r.stdout.split() == ["SIM_SPEED", "5.0"], r

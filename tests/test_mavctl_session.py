@@ -8,7 +8,7 @@ import subprocess
 import time
 
 from conftest import ROOT
-from test_mavctl_files import qgc_plan, same_numbers
+from plan_samples import qgc_plan, same_numbers
 
 MAVCTL = os.path.join(ROOT, ".venv", "bin", "mavctl")
 
