@@ -20,7 +20,8 @@ cancelled, FAILED, if the vehicle is armed meanwhile (the service refuses to sta
 armed). PREFLIGHT_SET_SENSOR_OFFSETS: sensor 0-6 takes the offsets (kept in
 `offsets[sensor]`, reported by STATUSTEXT), any other is DENIED.
 The board composes it with the simulator (boards/unix.py application(): compose()),
-which also gives DO_CONTROL_VIDEO the simulator's camera.
+which also gives DO_CONTROL_VIDEO the simulator's camera, and a mission's relay,
+servo and video items their effect as the runner makes each current.
 
 Setpoint echoes (services/telemetry_seed.py, the seed's set): at 10 Hz the attitude and
 thrust the model flies (ROLL_PITCH_YAW_THRUST_SETPOINT; the speed and rate setpoints
@@ -153,6 +154,28 @@ def _name(p, o):
     return bytes(p[o:o + 10]).split(b"\0")[0].decode("utf-8", "replace")
 
 
+def _mission_items(ep, sim):
+    """A mission's DO_SET_RELAY / DO_REPEAT_RELAY / DO_SET_SERVO / DO_REPEAT_SERVO drive the
+    servo table (services/servos.py do_item) and DO_CONTROL_VIDEO the camera as each
+    becomes current (the runner's on_item; a hook already there is still called)."""
+    missions = ep.services.get("missions")
+    runner = getattr(missions, "runner", None)
+    if runner is None:
+        return
+    servos = ep.services.get("servos")
+    before = runner.on_item
+
+    def on_item(r):
+        item = r.item
+        if item is not None and servos is not None and 181 <= item.command <= 184:
+            servos.do_item(item)
+        elif item is not None and item.command == 200 and sim is not None:
+            sim.video = item.param2 > 0 or item.param4 > 0  # transmission or recording
+        if before is not None:
+            before(r)
+    runner.on_item = on_item
+
+
 def compose(ep, sim=None):
     """Attach to an endpoint that has the calibration service (the simulator's board);
     the simulator's camera (sim.video) answers DO_CONTROL_VIDEO (services/seed_commands.py):
@@ -174,6 +197,7 @@ def compose(ep, sim=None):
             geo.corrections = getattr(geo, "corrections", 0) + 1
             ep.statustext(_INFO, "State correction x=%.2f y=%.2f z=%.2f" % (x, y, z))
         geo.on_state_correction = on_correction
+    _mission_items(ep, sim)
     seed = ep.services.get("seed_commands")
     if seed is not None and sim is not None and hasattr(sim, "video"):
         def video(cmd):

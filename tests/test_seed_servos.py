@@ -109,3 +109,21 @@ def test_mavproxy_relay_and_servo_commands(vehicle, tmp_path):
         assert servo_outputs(m, cond=lambda s: s.servo10_raw == 1500) is not None
     finally:
         mp.close()
+
+
+def test_mission_items_drive_the_table(vehicle):
+    # A mission's DO_SET_SERVO and DO_SET_RELAY take effect as the runner reaches them.
+    from mission_gcs import LAT0, LON0, Item, MissionClient
+
+    v = vehicle(args=["--set", "sim_speed=20", "--set", "sim_climb=10"])
+    m = v.gcs()
+    assert run(m, 511, 36, 100000) == MAV_RESULT_ACCEPTED
+    plan = [Item(3, 22, 0, 1, 0.0, 0.0, 0.0, 0.0, LAT0, LON0, 5.0),
+            Item(2, 183, 0, 1, 8.0, 1900.0, 0.0, 0.0, 0, 0, 0.0),  # DO_SET_SERVO 8 1900
+            Item(2, 181, 0, 1, 3.0, 1.0, 0.0, 0.0, 0, 0, 0.0),  # DO_SET_RELAY 3 on
+            Item(3, 16, 0, 1, 0.0, 2.0, 0.0, 0.0, LAT0 + 500, LON0, 5.0)]
+    assert MissionClient(m).upload(plan) == 0
+    assert run(m, 400, 1) == MAV_RESULT_ACCEPTED
+    assert run(m, 176, 1 | 4 | 16, 3) == MAV_RESULT_ACCEPTED  # AUTO
+    assert servo_outputs(m, 30, lambda s: s.servo8_raw == 1900) is not None
+    assert relays(m) == 8
