@@ -26,7 +26,8 @@ servo and video items their effect as the runner makes each current.
 Setpoint echoes (services/telemetry_seed.py, the seed's set): at 10 Hz the attitude and
 thrust the model flies (ROLL_PITCH_YAW_THRUST_SETPOINT; the speed and rate setpoints
 with zero rates: it holds them) and the point it flies toward
-(GLOBAL_POSITION_SETPOINT_INT, MSL).
+(GLOBAL_POSITION_SETPOINT_INT, MSL). Once a GPS global origin is set, the local frame's
+offset from it (LOCAL_POSITION_NED_SYSTEM_GLOBAL_OFFSET), also at 10 Hz.
 """
 import math
 import struct
@@ -69,6 +70,7 @@ class SimCalibration:
         seed = ep.services.get("telemetry_seed")
         if seed is not None and seed.slots and self.sim is not None:
             self.echoes = seed
+        self.geo = ep.services.get("geography") if self.sim is not None else None
 
     def handle(self, cmd):
         if cmd.command == 242:
@@ -93,9 +95,12 @@ class SimCalibration:
         return _IN_PROGRESS
 
     def tick(self, now):
-        if self.echoes is not None and ticks_diff(now, self._echo_at) >= 100:
+        if (self.echoes is not None or self.geo is not None) and ticks_diff(now, self._echo_at) >= 100:
             self._echo_at = now
-            self._echo()
+            if self.echoes is not None:
+                self._echo()
+            if self.geo is not None and self.geo.origin_set:
+                self._offset()
         self._calibrate(now)
 
     def _echo(self):
@@ -109,6 +114,16 @@ class SimCalibration:
         if target is not None:
             e.global_setpoint(0, round(target[0] * 1e7), round(target[1] * 1e7), round(target[2] * 1000),
                               round(math.degrees(sim.heading) * 100) % 36000)
+
+    def _offset(self):
+        # LOCAL_POSITION_NED_SYSTEM_GLOBAL_OFFSET: where the local frame's origin (the
+        # simulator's start, which LOCAL_POSITION_NED counts from) lies from the GPS
+        # global origin, in NED metres (flat earth: fine over a few kilometres).
+        lat0, lon0, alt0 = struct.unpack_from("<iii", self.geo._file, 2)
+        lat, lon, alt = self.sim.start
+        north = (lat - lat0 / 1e7) * 111319.49
+        east = (lon - lon0 / 1e7) * 111319.49 * math.cos(math.radians(lat))
+        self.geo.local_offset(north, east, -(alt - alt0 / 1000.0), 0.0, 0.0, 0.0)
 
     def _calibrate(self, now):
         if self._pending is None or ticks_diff(now, self._next) < self.step_ms // 2:

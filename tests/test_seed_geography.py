@@ -109,6 +109,12 @@ def test_local_offset_is_a_slot(vehicle):
     m = v.gcs()
     result, msg = request(m, 89)
     assert result == MAV_RESULT_ACCEPTED and msg is None  # nothing written yet: nothing sent
+    # The simulator fills it once there is an origin: its start, 1 km south of it here.
+    m.mav.set_gps_global_origin_send(1, 474067252, 85455940, 488000)
+    time.sleep(0.5)
+    result, msg = request(m, 89)
+    assert result == MAV_RESULT_ACCEPTED and msg is not None
+    assert abs(msg.x + 1000) < 20 and abs(msg.y) < 20
 
 
 def test_corrupt_store_is_cleared_and_said(tmp_path):
