@@ -119,7 +119,7 @@ class SimCalibration:
         # LOCAL_POSITION_NED_SYSTEM_GLOBAL_OFFSET: where the local frame's origin (the
         # simulator's start, which LOCAL_POSITION_NED counts from) lies from the GPS
         # global origin, in NED metres (flat earth: fine over a few kilometres).
-        lat0, lon0, alt0 = struct.unpack_from("<iii", self.geo._file, 2)
+        lat0, lon0, alt0 = self.geo.origin()
         lat, lon, alt = self.sim.start
         north = (lat - lat0 / 1e7) * 111319.49
         east = (lon - lon0 / 1e7) * 111319.49 * math.cos(math.radians(lat))

@@ -21,7 +21,7 @@ The area is enforced through this service's API, for the others:
     geo.check_item(rec, frame)           a mission record (mission_store.py's layout) ->
                                          0, or MAV_MISSION_INVALID_PARAM5_X / _PARAM6_Y /
                                          _PARAM7 for the coordinate that is outside
-    geo.area_set, geo.origin_set         what has been given
+    geo.area_set, geo.origin_set         what has been given; geo.origin() the origin
 An altitude is compared as the frame gives it (MSL or relative, NED z for a local
 area): the area's z and the target's are taken to be in the same sense.
 
@@ -35,6 +35,7 @@ Allocation-free on a 32-bit board: the bounds are int32 bytes (1e7 degrees, or m
 * 1e4 for local x/y and every z) made from the float32 fields by mission_items.fix,
 compared by 16-bit halves; a save opens the heap only for the storage's own moment.
 """
+import struct
 from struct import pack_into
 
 from ..compat import const
@@ -131,6 +132,13 @@ class Geography:
             if not _between(self._bounds, o, v >> 16, v & 0xFFFF):
                 return False
         return True
+
+    def origin(self):
+        """(lat 1e7 deg, lon 1e7 deg, alt mm) of the GPS global origin, None if not set
+        (makes a tuple: for the application, not a hot path)."""
+        if not self.origin_set:
+            return None
+        return struct.unpack_from("<iii", self._file, 2)
 
     def allows_degrees(self, lat, lon, alt_m=None):
         """allows() for degrees and metres (floats: for the simulator, not a hot path)."""
