@@ -83,6 +83,7 @@ class FlightPilot:
         self.paused_mode = None  # DO_PAUSE_CONTINUE: (mode, hold_at, speed, yaw) to continue with
         self.landed = ON_GROUND
         self._airborne = None
+        self._asked = False  # a ground station's mode request was accepted since the last step
         self._fly = {"TAKEOFF": self._fly_takeoff, "LOITER": self._fly_hold, "GUIDED": self._fly_hold,
                      "RTL": self._fly_rtl, "LAND": self._fly_land, "AUTO": self._fly_auto}
         self._hooks()
@@ -119,8 +120,9 @@ class FlightPilot:
         mode = status.flight_mode if status is not None else None
         if mode is None:  # a board without a mode table: its AUTO flag
             mode = "AUTO" if status is not None and status.auto else "LOITER"
-        if mode != self.mode:
-            self._entered(mode)  # a ground station's change
+        if mode != self.mode or self._asked:
+            self._asked = False
+            self._entered(mode)  # a ground station's change (or the same mode again: afresh)
         self._failsafe_tick(dt)
         if status is None or not status.armed:
             self._disarmed(dt)
@@ -318,9 +320,11 @@ class FlightPilot:
             runner = self.runner
             if runner is None or runner.store.count == 0:
                 return "no mission"
+        answer = None
         if self.inputs is not None and hasattr(self.inputs, "mode_check"):
-            return self.inputs.mode_check(name)
-        return None
+            answer = self.inputs.mode_check(name)
+        self._asked = answer is None  # (the last veto: the mode is entered now)
+        return answer
 
     def _arm_check(self, arm):
         if arm:

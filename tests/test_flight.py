@@ -293,3 +293,41 @@ def test_gcs_back_before_the_hold_ends_stays_holding(vehicle):
     deadline = time.time() + 6
     while time.time() < deadline:
         assert gcs_tools.listen(m, "HEARTBEAT", 2, lambda h: h.get_srcSystem() == 1).custom_mode == LOITER
+
+
+def px4(main, sub=0):
+    return main << 16 | sub << 24
+
+
+def test_offboard_setpoints_flown_and_their_loss_holds_then_returns(vehicle):
+    """OFFBOARD (set the PX4 way, which turns the link to PX4's numbering) flies the
+    streamed SET_POSITION_TARGET_LOCAL_NED; when it stops: LOITER (PX4 AUTO.LOITER) at
+    once, RTL (AUTO.RTL) FS_HOLD_S later."""
+    v, m = fly_vehicle(vehicle)
+    m.mav.param_set_send(1, 1, b"FS_HOLD_S", 1.0, 9)
+    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == 1.0
+    takeoff(m)
+    position_only = 8 | 16 | 32 | 64 | 128 | 256 | 1024 | 2048
+
+    def setpoint():
+        m.mav.set_position_target_local_ned_send(0, 1, 1, 1, position_only, 20.0, 0.0, -10.0, 0, 0, 0, 0, 0, 0, 0, 0)
+
+    m.mav.set_mode_send(1, 1, px4(6))  # OFFBOARD without a setpoint: refused
+    assert gcs_tools.statustext(m, "Mode: no offboard setpoint") is not None
+    for _ in range(3):
+        setpoint()
+        time.sleep(0.1)
+    m.mav.set_mode_send(1, 1, px4(6))
+    deadline = time.time() + 20
+    there = None
+    while time.time() < deadline and there is None:
+        setpoint()
+        there = recv(m, "LOCAL_POSITION_NED", 0.2, lambda p: abs(p.x - 20.0) < 0.5 and abs(p.z + 10.0) < 0.5)
+    assert there is not None
+    assert gcs_tools.vehicle_heartbeat(m).custom_mode == px4(6)
+    # The stream stops.
+    assert gcs_tools.statustext(m, "Failsafe: Offboard setpoints lost: holding") is not None
+    assert gcs_tools.vehicle_heartbeat(m, lambda h: h.custom_mode == px4(4, 3)) is not None
+    assert gcs_tools.statustext(m, "Failsafe: Offboard setpoints lost: returning") is not None
+    assert gcs_tools.vehicle_heartbeat(m, lambda h: h.custom_mode == px4(4, 5)) is not None
+    assert gcs_tools.vehicle_heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=30) is not None
