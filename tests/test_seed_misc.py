@@ -233,3 +233,14 @@ def test_setpoint_echoes_stream(seed_station):
     g.command(511, 51, 200000)
     sp = g.recv("LOCAL_POSITION_SETPOINT", 5, lambda s: s.x == 4.0)
     assert sp is not None and (sp.y, sp.z, sp.coordinate_frame) == (5.0, -6.0, 1)
+
+
+def test_geography_in_the_seed_set(seed_station):
+    # The seed's forms (no time_usec): origin and area answered as in today's set.
+    g = seed_station
+    g.send(g.mod.MAVLink_set_gps_global_origin_message(1, 473977420, 85455940, 488000))
+    o = g.recv("GPS_GLOBAL_ORIGIN", 5)
+    assert (o.latitude, o.longitude, o.altitude) == (473977420, 85455940, 488000)
+    g.send(g.mod.MAVLink_safety_set_allowed_area_message(1, 1, 0, 47.3, 8.5, 0.0, 47.5, 8.6, 120.0))
+    a = g.recv("SAFETY_ALLOWED_AREA", 5)
+    assert a.frame == 0 and abs(a.p2z - 120.0) < 1e-3
