@@ -125,7 +125,7 @@ def read_rc(s, rc):
 def read_target(s, p):
     s.sum += p.x_milli() + p.vz_milli() + p.yaw_milli()
     s.sum += p.type_mask() + p.uses_position() + p.uses_velocity()
-    s.sum += p.lat_e7() & 0xFFFF
+    s.sum += p.lat_hi() + p.lat_lo() + p.lon_hi() + p.lon_lo()  # halves: any value, no heap int
 
 
 def read_attitude(s, a):

@@ -267,7 +267,10 @@ class PositionTarget(Input):
     the position (local: x y z m; global: lat_int lon_int degE7, alt m), velocity
     (m/s), acceleration (m/s2), yaw (rad), yaw_rate (rad/s), type_mask, frame.
     *_milli: the float times 1000 (mm, mm/s, mrad); lat_e7/lon_e7 (global): ints
-    (a longitude past +-107 deg is a heap int on a 32-bit board: see fields.i32_cmp).
+    (a longitude past +-107 deg is a heap int on a 32-bit board); lon_hi()/lon_lo() and
+    lat_hi()/lat_lo(): the same in 16-bit halves (value = hi * 65536 + lo, hi signed),
+    which never are, for a hot path that takes any longitude (fields.i32_cmp compares
+    them with a bound).
     uses_position() / uses_velocity() / uses_accel() / uses_yaw() / uses_yaw_rate():
     the type_mask leaves them in (not all three axes ignored)."""
 
@@ -303,6 +306,18 @@ class PositionTarget(Input):
 
     def lat_e7(self):
         return self.i32(4)
+
+    def lat_hi(self):
+        return self.i16(6)
+
+    def lat_lo(self):
+        return self.u16(4)
+
+    def lon_hi(self):
+        return self.i16(10)
+
+    def lon_lo(self):
+        return self.u16(8)
 
     def lon_e7(self):
         return self.i32(8)
