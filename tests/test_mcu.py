@@ -131,6 +131,7 @@ STEADY = (
     ("streams_steady.py", [2, 5760, 10000, 3]),  # 10,000 scheduler ticks, ten streams
     ("status_steady.py", ["status,commands", "-", 3000]),
     ("inputs_steady.py", [1500]),  # every pilot input, loss, echoes, HIL_CONTROLS
+    ("seed_steady.py", ["common", 3]),  # geography, debug, servos, auth, calibration, seed commands
 )
 
 

@@ -39,6 +39,7 @@ class Board:
 
 
 COUNTS = [0, 0, 0]
+UP_3M = -3.0  # made once: a negative float literal is negated at run time by some compilers (1.25's)
 CHECKS = [-1, -1]  # check_item of the record inside, outside  # state corrections, debug values, relay/servo hardware calls
 
 
@@ -71,7 +72,7 @@ class Rounds:
         self.b.run(40, 1)
         self.geo.local_offset(1.0, 2.0, 3.0, 0.1, 0.2, 0.3)
         e = self.echoes
-        e.local_setpoint(1, 1.0, 2.0, -3.0, 0.5)
+        e.local_setpoint(1, 1.0, 2.0, UP_3M, 0.5)
         e.global_setpoint(0, self.lat, self.lon, 10000, 900)
         e.attitude_setpoint(0.1, 0.2, 0.3, 0.5)
         e.speed_setpoint(0.1, 0.2, 0.3, 0.5)
