@@ -2,7 +2,7 @@
 pymavlink ground station over UDP: takeoff, hold, land, reposition, speed, RTL, mode
 changes with the same effect as the commands, MISSION_START, failsafes, and telemetry
 telling the truth throughout (EXTENDED_SYS_STATE landed_state, HEARTBEAT system_status,
-GLOBAL_POSITION_INT). Fast simulation: 20 m/s, 10 m/s climb."""
+GLOBAL_POSITION_INT). Fast simulation: 40 m/s, 20 m/s climb."""
 import math
 import time
 
@@ -17,7 +17,7 @@ STANDBY, ACTIVE = 3, 4
 ARMED = 128
 # ArduPilot's numbers (the unix board's FLIGHT_MODES), as a pymavlink link reads them.
 AUTO, GUIDED, LOITER, RTL, LAND = 3, 4, 5, 6, 9
-FAST = ("--set", "sim_speed=20", "--set", "sim_climb=10")
+FAST = ("--set", "sim_speed=40", "--set", "sim_climb=20")
 
 
 def fly_vehicle(vehicle, *args):
@@ -285,12 +285,12 @@ def test_gcs_loss_holds_then_returns(vehicle):
 
 def test_gcs_back_before_the_hold_ends_stays_holding(vehicle):
     v, m = fly_vehicle(vehicle, "--set", "gcs_timeout_ms=1000")
-    m.mav.param_set_send(1, 1, b"FS_HOLD_S", 4.0, 9)
-    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == 4.0
+    m.mav.param_set_send(1, 1, b"FS_HOLD_S", 3.0, 9)
+    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == 3.0
     takeoff(m)
     assert recv(m, "STATUSTEXT", 10, lambda s: "Failsafe: GCS lost: holding" in s.text) is not None
     assert gcs_tools.statustext(m, "Failsafe: GCS back: holding here") is not None
-    deadline = time.time() + 6
+    deadline = time.time() + 4
     while time.time() < deadline:
         assert gcs_tools.listen(m, "HEARTBEAT", 2, lambda h: h.get_srcSystem() == 1).custom_mode == LOITER
 

@@ -9,7 +9,7 @@ from conftest import recv
 from gcs_tools import MavProxy, mavsdk_system
 from mission_gcs import LAT0, LON0
 
-FAST = ("--set", "sim_speed=20", "--set", "sim_climb=10")
+FAST = ("--set", "sim_speed=40", "--set", "sim_climb=20")
 ARMED = 128
 HOME_ALT = 488.0
 
