@@ -65,6 +65,36 @@ def test_only_what_is_addressed_to_us(vehicle):
     _alive(v)
 
 
+def test_setpoints_outside_the_safety_area_are_dropped(vehicle):
+    # seed: SAFETY_SET_ALLOWED_AREA
+    # A global area around the field (MSL 400-600 m): a global setpoint outside it is
+    # dropped and told once; one inside is taken. A local area gates local setpoints.
+    v = start(vehicle, *LOCKED)
+    m = v.gcs()
+    m.mav.safety_set_allowed_area_send(1, 1, 6, 47.39, 8.54, 400.0, 47.41, 8.56, 600.0)
+    assert listen(m, "SAFETY_ALLOWED_AREA", 5, lambda a: a.p2z == 600.0) is not None
+    m.mav.set_position_target_global_int_send(0, 1, 1, 6, POS_ONLY, 474977420, 85455940, 500.0,
+                                              0, 0, 0, 0, 0, 0, 0, 0)  # 11 km north
+    assert statustext(m, "Setpoint outside the allowed area") is not None
+    m.mav.set_position_target_global_int_send(0, 1, 1, 6, POS_ONLY, 473977420, 85455940, 700.0,
+                                              0, 0, 0, 0, 0, 0, 0, 0)  # too high
+    m.mav.set_position_target_global_int_send(0, 1, 1, 6, POS_ONLY, 473977420, 85455940, 500.0,
+                                              0, 0, 0, 0, 0, 0, 0, 0)  # inside
+    g = listen(m, "POSITION_TARGET_GLOBAL_INT", 5, lambda t: t.lat_int != 0)
+    assert g is not None and (g.lat_int, g.alt) == (473977420, 500.0)  # the only one taken
+    # A local area (MAV_FRAME_LOCAL_NED, 20 m around the origin): local setpoints too.
+    m.mav.safety_set_allowed_area_send(1, 1, 1, -20.0, -20.0, -30.0, 20.0, 20.0, 0.0)
+    assert listen(m, "SAFETY_ALLOWED_AREA", 5, lambda a: a.frame == 1) is not None
+    _target_local(m, 25.0, 0.0, -5.0)
+    assert statustext(m, "Setpoint outside the allowed area") is not None
+    _target_local(m, 5.0, 0.0, -5.0)
+    t = listen(m, "POSITION_TARGET_LOCAL_NED", 5, lambda t: t.x != 0)
+    assert t is not None and t.x == 5.0
+    _target_local(m, 99.0, 0.0, -5.0, frame=8)  # BODY_NED: relative to the vehicle, not checked
+    assert listen(m, "POSITION_TARGET_LOCAL_NED", 5, lambda t: t.x == 99.0) is not None
+    _alive(v)
+
+
 def test_operator_control_keeps_others_out(vehicle):
     v = start(vehicle, *LOCKED, "--set", "operator_passkey=secret")
     m = v.gcs()

@@ -42,3 +42,10 @@ def test_inputs_steady_under_heap_lock(dialect, portable):
 def test_inputs_under_operator_control():
     f = _figures(run_mpy(SCRIPT, str(ROUNDS), "common", "operator", path=[MPY], timeout=120))
     assert f["requested"] == 0 and f["refused"] == 1
+
+
+def test_inputs_inside_a_safety_area():
+    # Every position setpoint checked against the area (geography.check_target), on the
+    # counted and the heap-locked path; the global one is inside it and taken.
+    f = _figures(run_mpy(SCRIPT, str(ROUNDS), "common", "area", path=[MPY], timeout=120))
+    assert f["requested"] == 0 and f["delivered"] >= 1000

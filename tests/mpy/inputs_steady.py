@@ -3,6 +3,8 @@
     inputs_steady.py [ROUNDS] [DIALECT] [MODE]
 DIALECT: common (default) or seed2012. MODE "operator": a passkey is set and the
 station in control took it; a second station's inputs are refused on the counted path.
+MODE "area": a safety area (services/geography.py) that position setpoints are checked
+against.
 Every simulated ms one input frame arrives, in turn: MANUAL_CONTROL, RC_CHANNELS_OVERRIDE
 (ignore, release and set values), MANUAL_SETPOINT, SET_POSITION_TARGET_LOCAL_NED and
 _GLOBAL_INT, SET_ATTITUDE_TARGET, HIL_STATE, HIL_RC_INPUTS_RAW, HIL_SENSOR, the vision,
@@ -164,8 +166,12 @@ def main():
         board.OPERATOR_PASSKEY = "secret"
     if dialect_name == "seed2012":
         board.DEFAULT_STREAMS = ((51, 50), (52, 50), (91, 50))
-    b = Bench(services=("status", "commands", "inputs", "streams"), board=board, dialect=dialect)
+    services = ("status", "commands", "inputs", "streams") + (("geography",) if mode == "area" else ())
+    b = Bench(services=services, board=board, dialect=dialect, storage="ram" if mode == "area" else None)
     g = b.gcs()
+    if mode == "area":  # a safety area around the global target: every one is checked, and taken
+        b.send(g.frame(54, 47.39, 8.54, 0.0, 47.41, 8.56, 100.0, 1, 1, 6))
+        b.run(5)
     other = b.gcs(200, 1) if mode == "operator" else None
     st = b.ep.services["status"]
     if mode == "operator":
@@ -196,6 +202,9 @@ def main():
     # the records hold the controlling station's values
     refused = 1 if (inp.manual.x() == 100 and (inp.position_local is None or inp.position_local.x_milli() == 10000)
                     and (inp.seed_local is None or inp.seed_local.milli(0) == 4000)) else 0
+    geo = b.ep.services.get("geography")
+    if geo is not None and not (geo.area_set and geo.refused == 0):
+        refused = 0  # MODE area: the area must be in place, and the (inside) setpoints taken
     ok = requested == 0 and st.hil and refused
     print("%s rounds=%d delivered=%d lost=%d echoes=%d hil=%d refused=%d manual=%d requested=%d"
           % ("OK" if ok else "FAIL", rounds, s.delivered - d0, s.lost - l0, echoes, b.seen.get(91, 0) - h0,

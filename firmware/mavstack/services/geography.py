@@ -18,6 +18,9 @@ The area is enforced through this service's API, for the others:
     geo.allows_command(cmd[, frame])     a command's target (param5-7, COMMAND_LONG or
                                          _INT): False, with a STATUSTEXT, when outside;
                                          the caller answers DENIED (reposition, goto)
+    geo.check_target(p, is_global)       a SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT
+                                         payload: False when its position is outside (the
+                                         inputs service then drops it; one STATUSTEXT a run)
     geo.check_item(rec, frame)           a mission record (mission_store.py's layout) ->
                                          0, or MAV_MISSION_INVALID_PARAM5_X / _PARAM6_Y /
                                          _PARAM7 for the coordinate that is outside
@@ -44,6 +47,8 @@ from ..kernels import copy, crc16
 from .mission_items import fix, LOCAL_FRAMES
 from .statustext import WARNING
 
+_FRAME_LOCAL_NED = const(1)
+_GLOBAL_TARGET_FRAMES = b"\x00\x03\x05\x06\x0a\x0b"  # global, relative and terrain altitude
 _MSG_SET_GPS_GLOBAL_ORIGIN = const(48)
 _MSG_GPS_GLOBAL_ORIGIN = const(49)
 _MSG_SAFETY_SET_ALLOWED_AREA = const(54)
@@ -80,6 +85,8 @@ class Geography:
         self._bounds = bytearray(24)
         self._tmp = bytearray(24)  # the corners being checked
         self._z = bytearray(4)  # a mission item's z as an int32
+        self._target = bytearray(28)  # a setpoint's position, as a mission record has it
+        self.refusing = False  # the last setpoint was outside (told once, not per frame)
         self._slot = None
         self.refused = 0
         self._v1 = self._v2 = self._v3 = self._v4 = self._v5 = self._v6 = 0
@@ -169,6 +176,33 @@ class Geography:
         if not ok:
             self.refused += 1
             self.ep.statustext(WARNING, b"Target outside the allowed area")
+        return ok
+
+    def check_target(self, p, is_global):
+        """A position setpoint inside the area (or not checked: no area, the position
+        ignored by type_mask, a frame relative to the vehicle)? Per frame at the
+        setpoint rate: its x, y, z go into a mission record's places and check_item
+        decides, allocating nothing."""
+        if not self.area_set or p[48] & 7 == 7:  # type_mask: x, y and z ignored
+            return True
+        frame = p[52]
+        t = self._target
+        copy(t, p, 4 << 10 | 16, 12)
+        if is_global:
+            if frame not in _GLOBAL_TARGET_FRAMES:
+                return True
+        elif frame != _FRAME_LOCAL_NED:
+            return True
+        else:
+            fix(t, 16, True)
+            fix(t, 20, True)
+        return self._told(self.check_item(t, frame) == 0)
+
+    def _told(self, ok):
+        if not ok and not self.refusing:
+            self.refused += 1
+            self.ep.statustext(WARNING, b"Setpoint outside the allowed area")
+        self.refusing = not ok
         return ok
 
     def check_item(self, rec, frame):

@@ -111,6 +111,7 @@ class Inputs:
         self._by_kind = [None] * len(KINDS)
         self._next_check = 0
         self._next_hil = 0
+        self._wired = False  # started() has run (at the first tick: every service is in)
         self.hil_controls = None
         for k in KINDS:
             setattr(self, k[1], None)
@@ -124,6 +125,7 @@ class Inputs:
             if info is None or (crc >= 0 and info & 0xFF != crc):
                 continue
             r = cls(self, kind, msgid, ts, tc)
+            r.geo = None  # in its own dict now: set at the first tick, maybe heap-locked
             ep.on(msgid, r.deliver)
             setattr(self, name, r)
             self._by_kind[kind] = r
@@ -135,6 +137,15 @@ class Inputs:
                 r.echo = Echo(ep, target, src, dst, n, sb, db, stamp)
         if ep.has(91):
             self.hil_controls = HilControls(ep)
+
+    def started(self):
+        # Once every service is in (the first tick; the heap may be locked by then):
+        # position setpoints keep to the geography service's area.
+        geo = self.ep.services.get("geography")
+        if self.position_local is not None:
+            self.position_local.geo = geo
+        if self.position_global is not None:
+            self.position_global.geo = geo
 
     def _by_msgid(self, msgid):
         for r in self.records:
@@ -160,6 +171,9 @@ class Inputs:
 
     # --- periodic: loss of inputs, HIL_CONTROLS (allocation-free) ---------------------
     def tick(self, now):
+        if not self._wired:
+            self._wired = True
+            self.started()
         if ticks_diff(now, self._next_check) >= 0:
             self._next_check = ticks_add(now, _CHECK_MS)
             self._check(now)

@@ -272,7 +272,17 @@ class PositionTarget(Input):
     which never are, for a hot path that takes any longitude (fields.i32_cmp compares
     them with a bound).
     uses_position() / uses_velocity() / uses_accel() / uses_yaw() / uses_yaw_rate():
-    the type_mask leaves them in (not all three axes ignored)."""
+    the type_mask leaves them in (not all three axes ignored).
+    Inside a safety area only (services/geography.py): a setpoint whose position lies
+    outside it is dropped, and told once in a STATUSTEXT."""
+
+    geo = None  # the geography service, when the board has one (Inputs.started)
+
+    def deliver(self, link, p):
+        geo = self.geo
+        if geo is not None and not geo.check_target(p, self.msgid == 86):
+            return
+        Input.deliver(self, link, p)
 
     def type_mask(self):
         return self.u16(48)
