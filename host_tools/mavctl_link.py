@@ -144,11 +144,22 @@ def vehicle(args):
     the link is closed on the way out."""
     conn = open_from_args(args)
     try:
+        key = link_key(args)
+        if key is not None:  # a vehicle that signs: sign ours, take only what checks with it
+            conn.setup_signing(key, sign_outgoing=True)
         v = Vehicle(conn, args.target_system, args.target_component)
         v.connect(args.timeout)
         yield v
     finally:
         conn.close()
+
+
+def link_key(args):
+    """The signing key of --key PASSPHRASE (SHA-256, as MAVProxy derives it) or
+    --key-file FILE (32 bytes, 64 hex digits or a passphrase line), None without."""
+    from mavctl_signing import key_from  # (the signing subcommand's own reading of keys)
+
+    return key_from(getattr(args, "link_key", None), getattr(args, "link_key_file", None), "--key")
 
 
 def add_arguments(ap):
@@ -165,4 +176,8 @@ def add_arguments(ap):
     ap.add_argument("--target-system", type=int, help="the vehicle's system id (default: first heard)")
     ap.add_argument("--target-component", type=int, help="the vehicle's component id")
     ap.add_argument("--timeout", type=float, default=10.0, help="seconds to wait for a HEARTBEAT")
+    ap.add_argument("--key", dest="link_key", metavar="PASSPHRASE", help="MAVLink 2 signing: the vehicle's key by "
+                    "passphrase (as `mavctl signing setup` and MAVProxy's `signing key` derive it)")
+    ap.add_argument("--key-file", dest="link_key_file", metavar="FILE",
+                    help="MAVLink 2 signing: the vehicle's key from a file")
 

@@ -208,6 +208,10 @@ def test_signing_setup_and_clear_over_udp(vehicle, tmp_path):
     assert out.startswith("signing on: key %s" % mavproxy_key("correct horse")[:4].hex())
     assert mavproxy_key("correct horse") == hashlib.sha256(b"correct horse").digest()
     assert signs_with(v, mavproxy_key("correct horse"))
+    # Every subcommand signs with the global --key (or --key-file); without it the vehicle
+    # answers nothing that checks, so nothing is heard.
+    assert "SIM_SPEED" in ok(mavctl(link, "--key", "correct horse", "params", "get", "SIM_SPEED"))
+    refused(mavctl(link, "--timeout", "2", "--key", "wrong", "params", "get", "SIM_SPEED"), 5, "HEARTBEAT")
     # Now the key is required: without it, and with a wrong one, refused, key unchanged.
     refused(mavctl(link, "signing", "setup", "other"), 2, "--current")
     refused(mavctl(link, "signing", "setup", "other", "--current", "wrong"), 1, "did not take")
