@@ -341,13 +341,18 @@ class Missions:
         if not self.ep.for_us(p[32], p[33]):
             return
         if p[35] >= 2 and self.on_guided is not None:
-            # current 2 / 3: not a plan's item but ArduPilot's "guided" go-to / change
-            # altitude (MAVProxy's `guided`): the application's, answered with its result.
-            self._reply(link, self.on_guided(link, p, link.rx.msgid == _MSG_ITEM_INT), 0)
+            self._guided(link, p)
         elif self.state != _UPLOAD or not self._is_peer(link):
             self._on_rare(link, p)  # a repeat of the last item whose ACK was lost?
         elif (p[37] if self.has_type else 0) == self.t_store.mission_type:
             self.upload.item(link, p, u16(p, 28))
+
+    def _guided(self, link, p):
+        # current 2 / 3: not a plan's item but ArduPilot's "guided" go-to / change altitude
+        # (MAVProxy's `guided`): the application's, answered with its result. (Apart from
+        # _on_item: its frame state stays within what MicroPython keeps off the heap.)
+        result = self.on_guided(link, p, link.rx.msgid == _MSG_ITEM_INT)
+        self._reply(link, result, 0)
 
     def _commit(self, store, count):
         if not store.seal(count):
