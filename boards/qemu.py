@@ -4,7 +4,9 @@ locked once the vehicle is up, and a stand-in application.
 
 The application is a vehicle standing still on the ground with working sensors: it
 writes ATTITUDE, GLOBAL_POSITION_INT, GPS_RAW_INT and VFR_HUD slots from values made
-once, so its ticks allocate nothing, as a real board's sensor code must not.
+once, so its ticks allocate nothing, as a real board's sensor code must not. On qemu_m3,
+whose REPL keeps UART 0, it also stops the vehicle on a Ctrl-C there, as a port's UART
+interrupt would (the qemu port has none): that is how `mavctl flash` gets the REPL back.
 """
 from mavstack.compat import ticks_add, ticks_diff
 from mavstack.services.params import UINT32
@@ -91,17 +93,43 @@ class StandingVehicle:
             status.set_battery(12600, 0, 100)
         self._next = ep.now
         self._zero = 0.0
+        self._interrupt = KeyboardInterrupt()  # made once: raised with the heap locked
+        self._repl_uart = _repl_uart_m3()
 
     def tick(self, now):
         tm = self.tm
         if tm is None or ticks_diff(now, self._next) < 0:
             return
         self._next = ticks_add(now, 50)  # 20 Hz, above any rate asked for
+        if self._repl_uart and _ctrl_c():
+            raise self._interrupt
         z = self._zero
         tm.attitude(z, z, z, z, z, z)
         tm.global_position(self.LAT, self.LON, self.ALT_MM, 0, 0, 0, 0, 0)
         tm.gps_raw(3, self.LAT, self.LON, self.ALT_MM, 100, 100, 0, 0, 12)
         tm.vfr_hud(z, z, 0, 0, z, z)
+
+
+_mem32 = None
+
+
+def _repl_uart_m3():
+    global _mem32
+    import sys
+
+    if sys.platform != "qemu":
+        return False
+    from machine import mem32
+    from mavstack.qemu import MODEL
+
+    _mem32 = mem32
+    return MODEL == "m3"
+
+
+def _ctrl_c():
+    """A Ctrl-C in CMSDK UART 0's receive register (the REPL's, on the MPS2 board); any
+    other byte there is dropped, as the REPL is not reading while the vehicle runs."""
+    return _mem32[0x40004004] & 2 and _mem32[0x40004000] == 3  # STATE: RX full; DATA
 
 
 def application(ep):

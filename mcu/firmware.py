@@ -3,6 +3,8 @@ and run under qemu-system-arm with its UARTs on ptys.
 
     python mcu/firmware.py build [qemu_m3|qemu_m0 ...] [--heap-kb N]   build the firmware
     python mcu/firmware.py repl qemu_m3                                 a REPL on the board
+    python mcu/firmware.py run qemu_m3                                  the board with a
+        filesystem (mcu/boot_fs.py), its UARTs on ptys: `mavctl flash --board qemu_m3` target
 
 MicroPython's source is Debian's source package `micropython` (1.25.0 in trixie: its
 ports/qemu, .mpy format 6.3 like ours), fetched with plain `apt-get source` through a
@@ -28,6 +30,7 @@ SUITE = "trixie"  # the Debian suite whose source package we build (micropython 
 VERSION = "1.25.0"
 PACKAGE = "micropython=1.25.0+ds-1"  # pinned: the exact Debian source package
 DEFAULT_HEAP_KB = 96
+FS_HEAP_KB = 512  # the firmware with a filesystem: the stack's code is loaded into the heap
 
 # board profile -> (qemu port BOARD, qemu machine arguments, frozen viper kernels?)
 BOARDS = {
@@ -111,24 +114,40 @@ def build(board, heap_kb=DEFAULT_HEAP_KB, frozen=True, manifest=None, quiet=True
     manifest overrides firmware/manifest.py (tests freeze their scripts in as well).
     One build at a time (a lock file): test processes may ask at once.
     """
+    return _locked(_build, board, heap_kb, frozen, manifest, quiet)
+
+
+def build_with_filesystem(board, heap_kb=FS_HEAP_KB, quiet=True):
+    """The firmware `mavctl flash` writes to: MicroPython with littlefs and the frozen
+    mcu/boot_fs.py, which mounts a filesystem over the profile's FS_REGION at /flash, and
+    runs main.py from it after a soft reset to the REPL -> path of its ELF. Nothing of
+    mavstack is frozen in: the stack comes as the .mpy tree flash copies, and its code
+    then lives in the heap, hence the larger one."""
+    return _locked(_build, board, heap_kb, True, _boot_manifest(board), quiet, filesystem=True)
+
+
+def _locked(fn, *args, **kw):
     import fcntl
 
     os.makedirs(BUILD, exist_ok=True)
     with open(os.path.join(BUILD, ".lock"), "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
-        return _build(board, heap_kb, frozen, manifest, quiet)
+        return fn(*args, **kw)
 
 
-def _build(board, heap_kb, frozen, manifest, quiet):
+def _build(board, heap_kb, frozen, manifest, quiet, filesystem=False):
     port_board, _machine, native = BOARDS[board]
     out = elf_path(board, heap_kb, frozen)
     if manifest is not None:
         out = out[:-4] + "-" + os.path.basename(os.path.dirname(manifest)) + ".elf"
     src = source_dir()
+    _patch_boot(src)
     tag = "%s-%s" % (board, "frozen" if frozen else "plain") if manifest is None else "%s-%s" % (
         board, os.path.basename(manifest)[:-3])
+    if filesystem:
+        tag = board + "-fs"
     bdir = os.path.join(BUILD, "obj-" + tag)
-    inputs = _manifest_inputs(manifest) if frozen else []
+    inputs = (_boot_inputs(board) if filesystem else _manifest_inputs(manifest)) if frozen else []
     if os.path.exists(out) and all(os.path.getmtime(p) <= os.path.getmtime(out) for p in inputs):
         return out
     # The heap size is a compile-time constant of main.c: rebuild that object when it changes.
@@ -148,7 +167,9 @@ def _build(board, heap_kb, frozen, manifest, quiet):
     cmd = ["make", "-C", os.path.join(src, "ports", "qemu"), "-j%d" % (os.cpu_count() or 2),
            "BOARD=" + port_board, "BUILD=" + bdir, "MICROPY_HEAP_SIZE=%d" % (heap_kb * 1024),
            # Room for a traceback when the heap is locked: a MemoryError then says where.
-           "CFLAGS_EXTRA=-DMICROPY_EMERGENCY_EXCEPTION_BUF_SIZE=256"]
+           "CFLAGS_EXTRA=-DMICROPY_EMERGENCY_EXCEPTION_BUF_SIZE=256" + (" -DMAVSTACK_BOOT=1" if filesystem else "")]
+    if filesystem:
+        cmd += ["MICROPY_VFS_LFS2=1", "LDSCRIPT=" + _linker_script(src, port_board, os.path.dirname(manifest))]
     if frozen:
         cmd.append("FROZEN_MANIFEST=" + (manifest or os.path.join(ROOT, "firmware", "manifest.py")))
     else:
@@ -157,25 +178,110 @@ def _build(board, heap_kb, frozen, manifest, quiet):
     if r.returncode:
         sys.stderr.write((r.stdout or "")[-4000:] + (r.stderr or "")[-4000:])
         raise RuntimeError("mcu: firmware build failed for %s" % board)
-    _check_storage_region(board, os.path.join(bdir, "firmware.elf"))
+    _check_storage_region(board, os.path.join(bdir, "firmware.elf"), filesystem)
     shutil.copyfile(os.path.join(bdir, "firmware.elf"), out)
     return out
 
 
-def _check_storage_region(board, elf):
-    """The profile's RAM storage region must lie above everything the firmware uses
-    (its .bss holds the GC heap) and below the stack's 16 KB."""
+def _region(board, name):
+    """(start, size) of a RAM region a profile reserves: STORAGE_REGION, FS_REGION."""
     with open(os.path.join(ROOT, "boards", board + ".py")) as f:
-        m = re.search(r"^STORAGE_REGION = \((0x[0-9A-Fa-f]+), (0x[0-9A-Fa-f]+)\)", f.read(), re.M)
-    start, size = int(m.group(1), 16), int(m.group(2), 16)
+        m = re.search(r"^%s = \((0x[0-9A-Fa-f]+), (0x[0-9A-Fa-f]+)\)" % name, f.read(), re.M)
+    if m is None:
+        raise RuntimeError("mcu: boards/%s.py has no %s" % (board, name))
+    return int(m.group(1), 16), int(m.group(2), 16)
+
+
+def _check_storage_region(board, elf, filesystem=False):
+    """The profile's RAM storage region (and the filesystem's) must lie above everything
+    the firmware uses (its .bss holds the GC heap), below the stack's 16 KB, apart."""
+    regions = [_region(board, "STORAGE_REGION")] + ([_region(board, "FS_REGION")] if filesystem else [])
     syms = {}
     for line in _sh(["arm-none-eabi-nm", elf], capture_output=True, text=True).stdout.splitlines():
         parts = line.split()
         if len(parts) == 3:
             syms[parts[2]] = int(parts[0], 16)
-    if not syms["_ebss"] <= start or not start + size <= syms["_estack"] - 16 * 1024:
-        raise RuntimeError("mcu: %s's storage region %#x+%#x overlaps the firmware's RAM (ends %#x) "
-                           "or the stack (below %#x)" % (board, start, size, syms["_ebss"], syms["_estack"]))
+    for start, size in regions:
+        if not syms["_ebss"] <= start or not start + size <= syms["_estack"] - 16 * 1024:
+            raise RuntimeError("mcu: %s's region %#x+%#x overlaps the firmware's RAM (ends %#x) "
+                               "or the stack (below %#x)" % (board, start, size, syms["_ebss"], syms["_estack"]))
+    if len(regions) == 2 and not (regions[0][0] + regions[0][1] <= regions[1][0]
+                                  or regions[1][0] + regions[1][1] <= regions[0][0]):
+        raise RuntimeError("mcu: %s's STORAGE_REGION and FS_REGION overlap" % board)
+
+
+# Run at every reset of the firmware with a filesystem (-DMAVSTACK_BOOT): the frozen
+# _boot.py mounts it, then main.py from it runs if the reset was to the friendly REPL
+# (as on MicroPython's other ports: a soft reset from the raw REPL, mpremote's, runs none).
+_BOOT_MARK = "/* mavstack: boot from the filesystem */"
+_BOOT_C = _BOOT_MARK + """
+        #ifdef MAVSTACK_BOOT
+        pyexec_frozen_module("_boot.py", false);
+        if (pyexec_mode_kind == PYEXEC_MODE_FRIENDLY_REPL) {
+            pyexec_file_if_exists("main.py");
+        }
+        #endif
+"""
+_TIME_C = _BOOT_MARK + """
+#ifdef MAVSTACK_BOOT
+// littlefs stamps files with the time; the port has no clock (no time module).
+uint64_t mp_hal_time_ns(void) {
+    return 0;
+}
+#endif
+"""
+
+
+def _patch_boot(src):
+    """Give the qemu port's main.c the boot sequence above (once; inert without
+    -DMAVSTACK_BOOT, so the other builds are unchanged)."""
+    path = os.path.join(src, "ports", "qemu", "main.c")
+    with open(path) as f:
+        text = f.read()
+    if _BOOT_MARK in text:
+        return
+    anchor = "        mp_init();\n"
+    if anchor not in text or "void gc_collect(void) {" not in text:
+        raise RuntimeError("mcu: %s is not the main.c the boot patch expects" % path)
+    text = text.replace(anchor, anchor + _BOOT_C, 1)
+    text = text.replace("void gc_collect(void) {", _TIME_C + "\nvoid gc_collect(void) {", 1)
+    with open(path, "w") as f:
+        f.write(text)
+
+
+def _boot_manifest(board):
+    """A manifest freezing mcu/boot_fs.py as _boot.py, with the profile's FS_REGION."""
+    d = os.path.join(BUILD, "boot-" + board)
+    os.makedirs(d, exist_ok=True)
+    start, size = _region(board, "FS_REGION")
+    with open(os.path.join(ROOT, "mcu", "boot_fs.py")) as f:
+        text = f.read()
+    text = re.sub(r"^REGION = .*$", "REGION = (%#x, %#x)" % (start, size), text, count=1, flags=re.M)
+    with open(os.path.join(d, "_boot.py"), "w") as f:
+        f.write(text)
+    manifest = os.path.join(d, "manifest.py")
+    with open(manifest, "w") as f:
+        f.write("freeze(%r, '_boot.py')\n" % d)
+    return manifest
+
+
+def _linker_script(src, port_board, workdir):
+    """The board's linker script without unwind tables: littlefs' 64-bit arithmetic
+    brings libgcc's .ARM.exidx, which the port's script does not place (nothing unwinds)."""
+    with open(os.path.join(src, "ports", "qemu", "boards", port_board, "mpconfigboard.mk")) as f:
+        name = re.search(r"^LDSCRIPT = (\S+)", f.read(), re.M).group(1)
+    with open(os.path.join(src, "ports", "qemu", name)) as f:
+        text = f.read()
+    end = text.rindex("}")
+    out = os.path.join(workdir, os.path.basename(name))
+    with open(out, "w") as f:
+        f.write(text[:end] + "\n    /DISCARD/ : { *(.ARM.exidx*) *(.ARM.extab*) }\n" + text[end:])
+    return out
+
+
+def _boot_inputs(board):
+    return [os.path.abspath(__file__), os.path.join(ROOT, "mcu", "boot_fs.py"),
+            os.path.join(ROOT, "boards", board + ".py")]
 
 
 def _manifest_inputs(manifest):
@@ -207,7 +313,7 @@ def qemu_command(board, elf, serials):
 
 
 def main(argv):
-    if not argv or argv[0] not in ("build", "repl"):
+    if not argv or argv[0] not in ("build", "repl", "run"):
         raise SystemExit(__doc__)
     heap = DEFAULT_HEAP_KB
     if "--heap-kb" in argv:
@@ -218,6 +324,10 @@ def main(argv):
             t = time.time()
             elf = build(b, heap)
             print("%s: %s (%.0f KB, %.0f s)" % (b, elf, flash_kb(elf), time.time() - t))
+    elif argv[0] == "run":
+        elf = build_with_filesystem(boards[0])
+        print("%s: the REPL is the first pty QEMU names, MAVLink the second; Ctrl-C stops" % boards[0])
+        os.execvp("qemu-system-arm", qemu_command(boards[0], elf, ["pty", "pty"]))
     else:
         elf = build(boards[0], heap)
         os.execvp("qemu-system-arm", qemu_command(boards[0], elf, ["mon:stdio"]))
