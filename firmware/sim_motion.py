@@ -10,6 +10,7 @@ DO_CHANGE_SPEED (a mission item or a command) changes a speed until reset_speeds
 import math
 
 EARTH_RADIUS = 6378137.0
+CEILING = 10000.0  # m above the ground: no target is higher (whatever a command says)
 
 
 class Motion:
@@ -78,7 +79,7 @@ class Motion:
     def _go(self, lat, lon, alt, dt, radius, climb=None, speed=None):
         """Move toward a point for dt seconds -> True once within radius."""
         sim = self.sim
-        alt = max(alt, self.ground())
+        alt = max(self.ground(), min(alt, self.ground() + CEILING))
         sim.target = (lat, lon, alt)
         dn = math.radians(lat - sim.lat) * EARTH_RADIUS
         de = math.radians(lon - sim.lon) * EARTH_RADIUS * math.cos(math.radians(sim.lat))
@@ -109,6 +110,8 @@ class Motion:
         vd = max(-self.climb, min(self.sink, vd))
         if vd > 0 and sim.alt - vd * dt < self.ground():
             vd = max(0.0, (sim.alt - self.ground()) / dt)
+        elif vd < 0 and sim.alt - vd * dt > self.ground() + CEILING:
+            vd = 0.0
         sim.heading += yaw_rate * dt
         sim.target = None
         self._moved(vn * dt, ve * dt, vd * dt, dt, min(1.0, h / self.speed) if self.speed > 0 else 0.0)

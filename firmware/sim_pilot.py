@@ -52,6 +52,7 @@ _MISSION_ACCEPTED = 0  # MAV_MISSION_RESULT
 _MISSION_UNSUPPORTED_FRAME = 2
 _MISSION_DENIED = 14
 _PILOT_MODES = ("STABILIZE", "ALT_HOLD", "POSITION", "OFFBOARD")
+_MAX_SPEED = 100.0  # m/s: the fastest a reposition may ask for
 
 
 class FlightPilot:
@@ -415,7 +416,7 @@ class FlightPilot:
         point = self._point(cmd)
         if point is None:
             return self._refuse(_DENIED, "Reposition: position out of range")
-        speed = cmd.float(1) if cmd.finite(1) and cmd.float(1) > 0 else None
+        speed = min(cmd.float(1), _MAX_SPEED) if cmd.finite(1) and cmd.float(1) > 0 else None
         yaw = cmd.float(4) % 360.0 if cmd.finite(4) else None
         self._set_mode("GUIDED")
         self.hold_at, self.guided_speed, self.guided_yaw = point, speed, yaw
@@ -464,7 +465,7 @@ class FlightPilot:
 
     def _cmd_pause_continue(self, cmd):
         # param1 0: hold where it is; 1: continue in the mode paused.
-        if cmd.int(1) == 0:
+        if cmd.finite(1) and cmd.float(1) == 0:
             refused = self._flying("Pause")
             if refused is not None:
                 return refused
@@ -515,7 +516,7 @@ class FlightPilot:
             x, y = x / 1e7, y / 1e7
         if frame in _RELATIVE_FRAMES:
             alt += self.mission.home()[2]
-        here = self.hold_at
+        here = self.hold_at or (self.sim.lat, self.sim.lon, self.sim.alt)
         if p[35] == 3:  # change altitude only
             x, y = here[0], here[1]
         if not (-90.0 <= x <= 90.0 and -180.0 <= y <= 180.0) or alt != alt:

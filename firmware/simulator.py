@@ -135,7 +135,7 @@ class Simulator:
         qw, qx, qy, qz = _quaternion(roll, pitch, yaw)
         tm.attitude_quaternion(qw, qx, qy, qz, p, q, r)
         tm.global_position(lat_e7, lon_e7, round(self.alt * 1000), round(rel * 1000),
-                           round(self.vn * 100), round(self.ve * 100), round(self.vd * 100), round(hdg * 100) % 36000)
+                           _int16(self.vn * 100), _int16(self.ve * 100), _int16(self.vd * 100), round(hdg * 100) % 36000)
         x = math.radians(self.lat - HOME_LAT) * EARTH_RADIUS
         y = math.radians(self.lon - HOME_LON) * EARTH_RADIUS * math.cos(math.radians(self.lat))
         tm.local_position(x, y, -(self.alt - HOME_ALT), self.vn, self.ve, self.vd)
@@ -167,7 +167,7 @@ class Simulator:
         pub["gps_age"] += dt
         if pub["gps_age"] >= 0.2:  # a GPS receiver reports at 5 Hz
             pub["gps_age"] = 0.0
-            tm.gps_raw(3, lat_e7, lon_e7, round(self.alt * 1000), 80, 120, round(speed * 100),
+            tm.gps_raw(3, lat_e7, lon_e7, round(self.alt * 1000), 80, 120, min(round(speed * 100), 0xFFFE),
                        round(cog * 100) % 36000 if speed > 0.2 else 0xFFFF, len(_SATS),
                        round((self.alt + 47.0) * 1000), 1200, 1800, 150)
             tm.gps_status(len(_SATS), [s[0] for s in _SATS], [1] * len(_SATS),

@@ -331,3 +331,19 @@ def test_offboard_setpoints_flown_and_their_loss_holds_then_returns(vehicle):
     assert gcs_tools.statustext(m, "Failsafe: Offboard setpoints lost: returning") is not None
     assert gcs_tools.vehicle_heartbeat(m, lambda h: h.custom_mode == px4(4, 5)) is not None
     assert gcs_tools.vehicle_heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=30) is not None
+
+
+def test_absurd_numbers_keep_the_vehicle_flying(vehicle):
+    """What a command may say stays harmless: a reposition at 1e30 m/s to 1e30 m, a climb
+    rate of 1e5 m/s: capped (100 m/s, 10 km above the ground), telemetry goes on."""
+    v, m = fly_vehicle(vehicle)
+    takeoff(m)
+    assert gcs_tools.run(m, 178, 2, 1e5, -1) == ACCEPTED  # climb speed
+    m.mav.command_int_send(1, 1, 6, 192, 0, 0, 1e30, 1, 0, float("nan"), LAT0 + 90000, LON0, 1e30)
+    assert gcs_tools.ack(m, 192).result == ACCEPTED
+    high = position(m, lambda p: p.relative_alt > 9000000)
+    assert high is not None and high.relative_alt <= 10000000 and -32768 <= high.vz <= 32767  # (saturated)
+    assert gcs_tools.run(m, 176, 1, LAND) == ACCEPTED  # DO_SET_MODE LAND, down from 10 km at 1.5 m/s...
+    assert gcs_tools.run(m, 178, 3, 1e5, -1) == ACCEPTED  # ... or at 100 km/s
+    assert heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=20) is not None
+    v.check_alive()
