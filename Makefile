@@ -47,7 +47,7 @@ mcu-firmware: setup mcu-tools
 	$(PY) mcu/firmware.py build
 
 mcu-test: setup mcu-tools
-	$(PY) -m pytest -q tests/test_mcu.py tests/test_mcu_vehicle.py
+	$(PY) -m pytest -q tests/test_mcu.py tests/test_mcu_vehicle.py tests/test_flash_mcu.py
 
 # The fuzzer (tests/fuzz/engine.py) for SECONDS; a one-minute run is part of `make test`.
 SECONDS ?= 600
