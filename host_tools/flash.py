@@ -290,6 +290,13 @@ def check_board(board, settings, arch, dev_arch, machine):
                          "nothing was copied" % (board, arch, dev_arch))
 
 
+def _prepare_script(files):
+    """What flash runs on the board before copying (flash_device.prepare_script)."""
+    from flash_device import prepare_script
+
+    return prepare_script(files)
+
+
 def flash_device(args, messages):
     """Read the board, build for it, copy the tree, reset, wait for the vehicle."""
     from mavctl_progress import progress

@@ -136,9 +136,7 @@ class Board:
     def _prepare(self, files):
         """Board side: make the directories, delete stack files the build does not have (a
         stale foo.py would shadow foo.mpy), hash what is there -> ({path: sha256 hex}, removed)."""
-        keep = sorted(f for f in files if f.startswith("mavstack/"))
-        dirs = sorted({f.rsplit("/", 1)[0] for f in files if "/" in f})
-        out = self.exec(_PREPARE % (keep, dirs, files))
+        out = self.exec(prepare_script(files))
         if "NOFS" in out:
             raise DeviceError("%s: the board has no writable filesystem to flash to" % self.port)
         have = {}
@@ -164,6 +162,13 @@ class Board:
             self.t.close()
         except Exception:
             pass
+
+
+def prepare_script(files):
+    """The board-side script of Board._prepare for the tree's files."""
+    keep = sorted(f for f in files if f.startswith("mavstack/"))
+    dirs = sorted({f.rsplit("/", 1)[0] for f in files if "/" in f})
+    return _PREPARE % (keep, dirs, files)
 
 
 def _sha256(data):
