@@ -332,7 +332,10 @@ def flash_device(args, messages):
         if mav == port:  # one UART: MAVLink has it once the vehicle runs
             board.close()
             board = None
-        msg = wait_heartbeat(mav, args.timeout, board)
+        msg, said = wait_heartbeat(mav, args.timeout, board)
+        for line in said:
+            if line.startswith("mavstack:"):  # what main.py says of the vehicle it built
+                print("flash: the board says: " + line[9:].strip())
         print("flash: the vehicle is up: HEARTBEAT from system %d on %s" % (msg.get_srcSystem(), mav))
         return 0
     finally:

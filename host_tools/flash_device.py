@@ -164,6 +164,10 @@ class Board:
             pass
 
 
+def _lines(console):
+    return [l.strip() for l in console.splitlines() if l.strip() and l.strip() != ">>>"]
+
+
 def prepare_script(files):
     """The board-side script of Board._prepare for the tree's files."""
     keep = sorted(f for f in files if f.startswith("mavstack/"))
@@ -228,8 +232,9 @@ for p in %r:
 
 
 def wait_heartbeat(device, timeout, board=None):
-    """The vehicle's first HEARTBEAT on device (its MAVLink port) -> the message; none in
-    time is an error that quotes what the board last printed on its REPL."""
+    """The vehicle's first HEARTBEAT on device (its MAVLink port) -> (the message, the
+    lines the board printed on its REPL port meanwhile); none in time is an error that
+    quotes the board's last line."""
     os.environ.setdefault("MAVLINK20", "1")
     from pymavlink import mavutil
 
@@ -246,9 +251,12 @@ def wait_heartbeat(device, timeout, board=None):
             if board is not None:
                 console += board.console()
             if msg is not None and msg.type != mavutil.mavlink.MAV_TYPE_GCS:
-                return msg
+                if board is not None:  # the two UARTs' output is not ordered: a moment more
+                    time.sleep(0.5)
+                    console += board.console()
+                return msg, _lines(console)
     finally:
         conn.close()
-    last = [l.strip() for l in console.splitlines() if l.strip() and l.strip() != ">>>"]
+    last = _lines(console)
     raise DeviceError("no HEARTBEAT on %s within %.0f s after the reset%s" % (
         device, timeout, "; the board said: " + last[-1] if last else ""), EXIT_NO_HEARTBEAT)
