@@ -85,7 +85,9 @@ class FlightPilot:
         self.landed = ON_GROUND
         self._airborne = None
         self._asked = False  # a ground station's mode request was accepted since the last step
-        self._fly = {"TAKEOFF": self._fly_takeoff, "LOITER": self._fly_hold, "GUIDED": self._fly_hold,
+        self._setpoint = False  # a position target arrived (flown in GUIDED, as ArduPilot does)
+        self.guided_velocity = None  # (vn, ve, vd, yaw rate, seconds left) of one in GUIDED
+        self._fly = {"TAKEOFF": self._fly_takeoff, "LOITER": self._fly_hold, "GUIDED": self._fly_guided,
                      "RTL": self._fly_rtl, "LAND": self._fly_land, "AUTO": self._fly_auto}
         self._hooks()
         self._update_landed()
@@ -110,6 +112,12 @@ class FlightPilot:
                 commands[300] = self._cmd_mission_start  # (in place of the runner's: it flies)
         if self.missions is not None:
             self.missions.on_guided = self._guided_item
+        inputs = self.ep.services.get("inputs")
+        if inputs is not None and self.inputs is not None:
+            from mavstack.services.inputs import POSITION_GLOBAL, POSITION_LOCAL
+
+            inputs.on(POSITION_LOCAL, self._setpoint_arrived)
+            inputs.on(POSITION_GLOBAL, self._setpoint_arrived)
 
     @property
     def runner(self):
@@ -157,7 +165,8 @@ class FlightPilot:
             self.fs_left = None  # a ground station took over from the failsafe
             self.paused_mode = None
         self.hold_at = (sim.lat, sim.lon, sim.alt)
-        self.guided_speed = self.guided_yaw = None
+        self.guided_speed = self.guided_yaw = self.guided_velocity = None
+        self._setpoint = False
         self.land_at = None
         self.climb_to = self.mission.ground() + self.mission.setting(None, "MIS_TAKEOFF_ALT", 10.0)
         self.rtl_leg = 0
@@ -232,6 +241,30 @@ class FlightPilot:
         lat, lon, alt = self.hold_at
         if m._go(lat, lon, alt, dt, 0.3, speed=self.guided_speed) and self.guided_yaw is not None:
             m._turn(self.guided_yaw, m.turn_rate, dt)
+
+    def _fly_guided(self, dt):
+        # GUIDED also takes SET_POSITION_TARGET_* as ArduPilot does (MAVProxy's `position`,
+        # `velocity`, `guided forward`): a position is latched when it arrives (a body-frame
+        # offset is from where the vehicle was then); a velocity is flown for 3 s.
+        if self._setpoint:
+            self._setpoint = False
+            demand = self.inputs.demand("OFFBOARD", dt)
+            if demand is not None and demand[0] == "pos" and self.landed != ON_GROUND:
+                self.hold_at = (demand[1], demand[2], demand[3])
+                self.guided_speed = self.guided_velocity = None
+                self.guided_yaw = math.degrees(demand[4]) % 360.0 if demand[4] is not None else None
+            elif demand is not None and demand[0] == "vel" and self.landed != ON_GROUND:
+                self.guided_velocity = demand[1:] + (3.0,)
+        v = self.guided_velocity
+        if v is not None:
+            self.mission.velocity(v[0], v[1], v[2], v[3], dt)
+            self.guided_velocity = v[:4] + (v[4] - dt,) if v[4] > dt else None
+            self.hold_at = (self.sim.lat, self.sim.lon, self.sim.alt)
+            return
+        self._fly_hold(dt)
+
+    def _setpoint_arrived(self, record):
+        self._setpoint = self.mode == "GUIDED"
 
     def _fly_takeoff(self, dt):
         sim = self.sim

@@ -121,7 +121,8 @@ def test_mavsdk_start_mission_flies_it_to_the_end(vehicle):
 
 def test_mavproxy_guided_takeoff_goto_rtl(vehicle, tmp_path):
     """MAVProxy: `mode GUIDED`, `arm throttle`, `takeoff 10`, `guided LAT LON ALT` (a
-    MISSION_ITEM_INT with current 2, ArduPilot's guided waypoint), `rtl` (mode RTL)."""
+    MISSION_ITEM_INT with current 2, ArduPilot's guided waypoint), `position X Y Z`,
+    `rtl` (mode RTL); `setyaw` is ArduPilot's alone."""
     v, port, check = gcs_tools.two_links(vehicle, *FAST)
     mp = MavProxy(port, tmp_path, "mode,cmdlong,arm")
     try:
@@ -138,6 +139,17 @@ def test_mavproxy_guided_takeoff_goto_rtl(vehicle, tmp_path):
         there = gcs_tools.listen(check, "GLOBAL_POSITION_INT", 30,
                                  lambda p: metres(p.lat / 1e7, p.lon / 1e7, lat, lon) < 1.0 and abs(p.relative_alt - 20000) < 500)
         assert there is not None
+        # `position` (SET_POSITION_TARGET_LOCAL_NED, body frame: 10 m ahead), flown in GUIDED
+        # as ArduPilot does; the nose points north-east after the goto.
+        mp.say("position 10 0 0")
+        ahead = gcs_tools.listen(check, "GLOBAL_POSITION_INT", 20,
+                                 lambda p: abs(metres(p.lat / 1e7, p.lon / 1e7, lat, lon) - 10.0) < 0.5
+                                 and p.vx == 0 and p.vy == 0)
+        assert ahead is not None and ahead.lat > lat * 1e7 and ahead.lon > lon * 1e7
+        # `setyaw` sends CONDITION_YAW as a command: ArduPilot's own use; MAVLink defines it
+        # as a mission item (flown in missions here), so the command is UNSUPPORTED.
+        mp.say("setyaw 90 10 1")
+        mp.expect(r"CONDITION_YAW.*UNSUPPORTED|UNSUPPORTED.*CONDITION_YAW|result 3")
         mp.say("rtl")
         assert gcs_tools.vehicle_heartbeat(check, lambda h: h.custom_mode == 6) is not None
         assert gcs_tools.vehicle_heartbeat(check, lambda h: not h.base_mode & ARMED, timeout=40) is not None
