@@ -347,3 +347,37 @@ def test_absurd_numbers_keep_the_vehicle_flying(vehicle):
     assert gcs_tools.run(m, 178, 3, 1e5, -1) == ACCEPTED  # ... or at 100 km/s
     assert heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=20) is not None
     v.check_alive()
+
+
+def test_manual_control_flies_alt_hold_and_its_loss_returns(vehicle):
+    """ALT_HOLD: MANUAL_CONTROL's throttle climbs from the ground, the pitch stick flies
+    forward, centred sticks hold; when it stops: LOITER, then RTL FS_HOLD_S later."""
+    v, m = fly_vehicle(vehicle)
+    m.mav.param_set_send(1, 1, b"FS_HOLD_S", 1.0, 9)
+    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == 1.0
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    set_mode(m, 2)  # ALT_HOLD
+
+    def sticks(x, z, seconds, cond=None):
+        deadline = time.time() + seconds
+        while time.time() < deadline:
+            m.mav.heartbeat_send(6, 8, 0, 0, 0)
+            m.mav.manual_control_send(1, x, 0, z, 0, 0)
+            p = recv(m, "GLOBAL_POSITION_INT", 0.1)
+            if p is not None and cond is not None and cond(p):
+                return p
+        return None
+
+    assert sticks(0, 1000, 15, lambda p: p.relative_alt > 8000) is not None  # full throttle: up
+    assert sticks(1000, 500, 15, lambda p: metres(p.lat, p.lon, LAT0, LON0) > 10 and p.vx > 500) is not None
+    a = sticks(0, 500, 1.0) or position(m)
+    b = sticks(0, 500, 1.0, lambda p: True)
+    time.sleep(0.3)
+    assert abs(b.relative_alt - a.relative_alt) < 600
+    # The sticks stop.
+    assert gcs_tools.statustext(m, "Failsafe: Manual control lost: holding") is not None
+    assert heartbeat(m, lambda h: h.custom_mode == LOITER) is not None
+    assert heartbeat(m, lambda h: h.custom_mode == RTL) is not None
+    assert heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=30) is not None
+    pos = position(m)
+    assert metres(pos.lat, pos.lon, LAT0, LON0) < 2.5
