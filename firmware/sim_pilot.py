@@ -168,7 +168,9 @@ class FlightPilot:
         self.guided_speed = self.guided_yaw = self.guided_velocity = None
         self._setpoint = False
         self.land_at = None
-        self.climb_to = self.mission.ground() + self.mission.setting(None, "MIS_TAKEOFF_ALT", 10.0)
+        # (TAKEOFF entered in the air climbs to the takeoff altitude, never down to it)
+        self.climb_to = max(self.mission.ground() + self.mission.setting(None, "MIS_TAKEOFF_ALT", 10.0),
+                            sim.alt if self.landed != ON_GROUND else 0.0)
         self.rtl_leg = 0
         self.rtl_alt = max(sim.alt, self.mission.home()[2] + self.mission.setting(None, "RTL_ALT", 15.0))
         sim.target = None
@@ -361,6 +363,8 @@ class FlightPilot:
         return answer
 
     def _arm_check(self, arm):
+        if arm and self.mode in ("LAND", "RTL"):
+            return "mode %s: not armable" % self.mode  # (ArduPilot's rule: it would land at once)
         if arm:
             return self.sim.pre_arm_check()
         if self.landed != ON_GROUND:

@@ -381,3 +381,20 @@ def test_manual_control_flies_alt_hold_and_its_loss_returns(vehicle):
     assert heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=30) is not None
     pos = position(m)
     assert metres(pos.lat, pos.lon, LAT0, LON0) < 2.5
+
+
+def test_takeoff_mode_in_the_air_and_arming_in_land(vehicle):
+    """Mode TAKEOFF (standard mode 8) in the air above the takeoff altitude stays there and
+    holds; landed in LAND, arming again is refused (it would land at once) until another mode."""
+    v, m = fly_vehicle(vehicle)
+    takeoff(m, 20.0)
+    assert gcs_tools.run(m, 262, 8) == ACCEPTED  # DO_SET_STANDARD_MODE TAKEOFF
+    assert heartbeat(m, lambda h: h.custom_mode == LOITER) is not None  # done at once: holds
+    assert abs(position(m).relative_alt - 20000) < 600
+    gcs_tools.command(m, 21)
+    assert wait_ack(m, 21)[0] == ACCEPTED
+    assert gcs_tools.run(m, 400, 1) == DENIED
+    assert gcs_tools.statustext(m, "Arm: mode LAND: not armable") is not None
+    set_mode(m, LOITER)
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    assert heartbeat(m, lambda h: h.base_mode & ARMED).system_status == STANDBY  # on the ground
