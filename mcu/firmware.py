@@ -146,6 +146,7 @@ def _build(board, heap_kb, frozen, manifest, quiet, filesystem=False):
         board, os.path.basename(manifest)[:-3])
     if filesystem:
         tag = board + "-fs"
+        out = elf_path(board, heap_kb)[:-4] + "-fs.elf"
     bdir = os.path.join(BUILD, "obj-" + tag)
     inputs = (_boot_inputs(board) if filesystem else _manifest_inputs(manifest)) if frozen else []
     if os.path.exists(out) and all(os.path.getmtime(p) <= os.path.getmtime(out) for p in inputs):
