@@ -3,6 +3,8 @@
     python host_tools/flash.py --board pico [--port /dev/ttyACM0]
     python host_tools/flash.py --board esp32 --build-only build/esp32
     python host_tools/flash.py --board unix --arch x64 --build-only /tmp/vehicle
+    mavctl flash --board qemu_m3 --port /dev/pts/5 --mavlink /dev/pts/6   (the emulated
+        board of `python mcu/firmware.py run qemu_m3`: REPL and MAVLink UARTs)
 
 The board gets (paths relative to the directory it boots from: / or /flash):
     main.py             firmware/main.py as source: the board runs it at boot

@@ -64,7 +64,7 @@ class Board:
             raise open_error(port, e.__cause__ if isinstance(e.__cause__, OSError) else e)
         self.t = SerialTransport(port, 115200)
 
-    def open(self, timeout=6.0):
+    def open(self, timeout=10.0):
         """Stop what runs (Ctrl-C), enter the raw REPL; nothing answering like MicroPython
         within timeout seconds is refused."""
         s = self.t.serial

@@ -92,6 +92,8 @@ def test_flash_end_to_end(board, tmp_path):
     total = int(re.search(r"flash: (\d+) files, \d+ bytes", r.stdout).group(1))
     assert "flash: %d files copied, 0 unchanged" % total in r.stdout, r.stdout
     assert "the vehicle is up: HEARTBEAT from system 1 on %s" % mav_pty in r.stdout
+    assert "the board says: qemu_m3 ready" in r.stdout
+    assert r.stderr == ""  # no progress bar in a pipe
 
     # mavctl over the MAVLink UART: parameters, a QGroundControl .plan, arming.
     link = "serial:%s:115200" % mav_pty
