@@ -1,6 +1,6 @@
 """The simulated vehicle's flight control (firmware/simulator.py): what it does in each
-flight mode, the flight commands, the failsafes, and the truth telemetry tells of it
-(landed state, airborne).
+flight mode, the flight commands (their handlers: sim_commands.py), the failsafes, and
+the truth telemetry tells of it (landed state, airborne).
 
 Modes (the board's FLIGHT_MODES; a ground station's mode change and the command that
 implies a mode have the same effect):
@@ -29,33 +29,15 @@ or a ground station picks another mode first.
 """
 import math
 
+from sim_commands import (ACCEPTED, DENIED, FAILED, IN_PROGRESS, INFO, PILOT_MODES, WARNING, IN_AIR,
+                          LANDING, ON_GROUND, TAKING_OFF, FlightCommands)
 from sim_mission import MissionPilot
 from sim_motion import distance
 
-ON_GROUND = 1  # MAV_LANDED_STATE
-IN_AIR = 2
-TAKING_OFF = 3
-LANDING = 4
-
-_ACCEPTED = 0  # MAV_RESULT
-_DENIED = 2
-_UNSUPPORTED = 3
-_FAILED = 4
-_IN_PROGRESS = 5
-_WARNING = 4  # MAV_SEVERITY
-_INFO = 6
-_INT32_MAX = 2147483647
 _GROUND_M = 0.05  # this close to the ground is on it
-_RELATIVE_FRAMES = (3, 6, 10, 11)  # altitude above home (terrain frames: as above home)
-_GLOBAL_FRAMES = (0, 5) + _RELATIVE_FRAMES
-_MISSION_ACCEPTED = 0  # MAV_MISSION_RESULT
-_MISSION_UNSUPPORTED_FRAME = 2
-_MISSION_DENIED = 14
-_PILOT_MODES = ("STABILIZE", "ALT_HOLD", "POSITION", "OFFBOARD")
-_MAX_SPEED = 100.0  # m/s: the fastest a reposition may ask for
 
 
-class FlightPilot:
+class FlightPilot(FlightCommands):
     def __init__(self, sim):
         self.sim = sim
         ep = self.ep = sim.ep
@@ -137,7 +119,7 @@ class FlightPilot:
             self._disarmed(dt)
         elif mode in self._fly:
             self._fly[mode](dt)
-        elif mode in _PILOT_MODES:
+        elif mode in PILOT_MODES:
             self._fly_pilot(dt)
         else:
             self._fly_hold(dt)
@@ -272,8 +254,8 @@ class FlightPilot:
         sim = self.sim
         lat, lon = self.hold_at[0], self.hold_at[1]
         if self.mission._go(lat, lon, self.climb_to, dt, 0.3):
-            self.ep.statustext(_INFO, "Takeoff: at %.1f m" % (sim.alt - self.mission.ground()))
-            self._finish(_ACCEPTED)
+            self.ep.statustext(INFO, "Takeoff: at %.1f m" % (sim.alt - self.mission.ground()))
+            self._finish(ACCEPTED)
             self._set_mode("LOITER")
 
     def _fly_land(self, dt):
@@ -297,8 +279,8 @@ class FlightPilot:
         self.mission._hold()
         if self.status is not None and self.status.armed:
             self.status.arm(False, True)  # (forced: this is the vehicle's own decision)
-            self.ep.statustext(_INFO, "Landed: disarmed")
-        self._finish(_ACCEPTED)
+            self.ep.statustext(INFO, "Landed: disarmed")
+        self._finish(ACCEPTED)
 
     def _fly_rtl(self, dt):
         sim = self.sim
@@ -327,7 +309,7 @@ class FlightPilot:
             if self.sim.alt - self.mission.ground() <= _GROUND_M:
                 self._touchdown()
             else:
-                self.ep.statustext(_INFO, "Mission: complete, holding")
+                self.ep.statustext(INFO, "Mission: complete, holding")
                 self._set_mode("LOITER")
 
     def _fly_pilot(self, dt):
@@ -373,7 +355,7 @@ class FlightPilot:
 
     # --- commands ---------------------------------------------------------------------------
     def _refuse(self, result, text):
-        self.ep.statustext(_WARNING, text)
+        self.ep.statustext(WARNING, text)
         return result
 
     def _defer(self, cmd):
@@ -382,7 +364,7 @@ class FlightPilot:
         self.pending = cmd.defer()
         self.pending_cmd = cmd.command
         self._since_progress = 0.0
-        return _IN_PROGRESS
+        return IN_PROGRESS
 
     def _finish(self, result):
         if self.pending is not None:
@@ -391,210 +373,49 @@ class FlightPilot:
 
     def _refuse_pending(self, why):
         name = "Takeoff" if self.pending_cmd == 22 else "Land"
-        self.ep.statustext(_WARNING, name + ": " + why)
-        self._finish(_FAILED)
+        self.ep.statustext(WARNING, name + ": " + why)
+        self._finish(FAILED)
 
     def _flying(self, what):
         """None if armed and in the air, else the refusal (MAV_RESULT) with its STATUSTEXT."""
         if self.status is None or not self.status.armed:
-            return self._refuse(_DENIED, what + ": disarmed")
+            return self._refuse(DENIED, what + ": disarmed")
         if self.landed == ON_GROUND:
-            return self._refuse(_DENIED, what + ": on the ground, take off first")
+            return self._refuse(DENIED, what + ": on the ground, take off first")
         return None
-
-    def _cmd_takeoff(self, cmd):
-        # param7: metres above home (COMMAND_INT in a global frame: MSL); NaN: MIS_TAKEOFF_ALT.
-        if self.status is None or not self.status.armed:
-            return self._refuse(_DENIED, "Takeoff: disarmed")
-        if self.landed != ON_GROUND:
-            return self._refuse(_FAILED, "Takeoff: already flying")
-        ground = self.mission.ground()
-        if not cmd.finite(7):
-            alt = self.mission.setting(None, "MIS_TAKEOFF_ALT", 10.0)
-        elif cmd.is_int and cmd.frame in (0, 5):
-            alt = cmd.float(7) - ground
-        else:
-            alt = cmd.float(7)
-        if not 0.5 <= alt <= 10000.0:
-            return self._refuse(_DENIED, "Takeoff: altitude %.1f m out of range" % alt)
-        self._set_mode("TAKEOFF")
-        self.climb_to = ground + alt
-        self.ep.statustext(_INFO, "Takeoff to %.1f m" % alt)
-        return self._defer(cmd)
-
-    def _cmd_land(self, cmd):
-        status = self.status
-        if status is None or not status.armed:
-            return self._refuse(_DENIED, "Land: disarmed")
-        if self.landed == ON_GROUND:
-            status.arm(False, True)
-            self.ep.statustext(_INFO, "Land: on the ground: disarmed")
-            return _ACCEPTED
-        at = self._point(cmd)
-        self._set_mode("LAND")
-        if at is not None and (at[0] or at[1]):
-            self.land_at = (at[0], at[1])
-        return self._defer(cmd)
-
-    def _cmd_rtl(self, cmd):
-        refused = self._flying("RTL")
-        if refused is not None:
-            return refused
-        self._set_mode("RTL")
-        return _ACCEPTED
-
-    def _cmd_reposition(self, cmd):
-        # param1 speed (-1: default), param4 yaw (NaN: keep), x/y lat/lon (INT32_MAX: keep), z alt.
-        refused = self._flying("Reposition")
-        if refused is not None:
-            return refused
-        if cmd.is_int and cmd.frame not in _GLOBAL_FRAMES:
-            return self._refuse(_DENIED, "Reposition: frame %d not supported" % cmd.frame)
-        point = self._point(cmd)
-        if point is None:
-            return self._refuse(_DENIED, "Reposition: position out of range")
-        speed = min(cmd.float(1), _MAX_SPEED) if cmd.finite(1) and cmd.float(1) > 0 else None
-        yaw = cmd.float(4) % 360.0 if cmd.finite(4) else None
-        self._set_mode("GUIDED")
-        self.hold_at, self.guided_speed, self.guided_yaw = point, speed, yaw
-        return _ACCEPTED
-
-    def _point(self, cmd):
-        """(lat, lon, alt MSL) from params 5-7 (each kept from the hold point when unset:
-        INT32_MAX or NaN), or None if out of range."""
-        here = self.hold_at or (self.sim.lat, self.sim.lon, self.sim.alt)
-        if cmd.is_int:
-            lat = here[0] if cmd.int(5) == _INT32_MAX else cmd.float(5)
-            lon = here[1] if cmd.int(6) == _INT32_MAX else cmd.float(6)
-        else:
-            lat = cmd.float(5) if cmd.finite(5) else here[0]
-            lon = cmd.float(6) if cmd.finite(6) else here[1]
-        alt = here[2]
-        if cmd.finite(7):
-            alt = cmd.float(7)
-            if cmd.is_int and cmd.frame in _RELATIVE_FRAMES:
-                alt += self.mission.home()[2]
-        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
-            return None
-        return lat, lon, alt
-
-    def _cmd_change_speed(self, cmd):
-        kind = cmd.float(1) if cmd.finite(1) else 1.0
-        speed = cmd.float(2) if cmd.finite(2) else -1.0
-        if not self.mission.change_speed(kind, speed):
-            return self._refuse(_DENIED, "Speed: %.1f m/s out of range" % speed)
-        self.guided_speed = None
-        return _ACCEPTED
-
-    def _cmd_loiter(self, cmd):
-        # NAV_LOITER_UNLIM: hold here, or at params 5-7 where given.
-        refused = self._flying("Loiter")
-        if refused is not None:
-            return refused
-        point = self._point(cmd)
-        if point is None:
-            return self._refuse(_DENIED, "Loiter: position out of range")
-        if not cmd.is_int and not cmd.float(5) and not cmd.float(6):
-            point = (self.sim.lat, self.sim.lon, point[2])  # 0, 0: here
-        self._set_mode("LOITER")
-        self.hold_at = point
-        return _ACCEPTED
-
-    def _cmd_pause_continue(self, cmd):
-        # param1 0: hold where it is; 1: continue in the mode paused.
-        if cmd.finite(1) and cmd.float(1) == 0:
-            refused = self._flying("Pause")
-            if refused is not None:
-                return refused
-            if self.mode != "LOITER":
-                paused = (self.mode, self.hold_at, self.guided_speed, self.guided_yaw)
-                self._set_mode("LOITER")
-                self.paused_mode = paused
-            return _ACCEPTED
-        if self.paused_mode is None:
-            return self._refuse(_DENIED, "Continue: nothing paused")
-        (mode, hold_at, speed, yaw), self.paused_mode = self.paused_mode, None
-        self._set_mode(mode)
-        if mode == "GUIDED":  # on to where it was going
-            self.hold_at, self.guided_speed, self.guided_yaw = hold_at, speed, yaw
-        return _ACCEPTED
-
-    def _cmd_mission_start(self, cmd):
-        # param1: first item, param2: last item (0 as QGroundControl sends it: to the end).
-        runner = self.runner
-        if not self.ep.allows(cmd.link):
-            return _DENIED
-        if runner.store.count == 0:
-            return self._refuse(_DENIED, "Mission: no mission")
-        if self.status is None or not self.status.armed:
-            return self._refuse(_DENIED, "Mission: disarmed, arm first")
-        first = 0 if cmd.nan(1) else cmd.int(1)
-        last = -1 if cmd.nan(2) else cmd.int(2)
-        if not runner.start(first, last):
-            return self._refuse(_DENIED, "Mission: no item %d" % first)
-        self._set_mode("AUTO")
-        return _ACCEPTED
-
-    def _guided_item(self, link, p, is_int):
-        """MISSION_ITEM(_INT) with current 2 (go there: ArduPilot's guided waypoint) or 3
-        (change altitude), as MAVProxy's `guided` sends -> MAV_MISSION_RESULT."""
-        if self.status is None or not self.status.armed or self.landed == ON_GROUND:
-            self.ep.statustext(_WARNING, "Guided: not flying")
-            return _MISSION_DENIED
-        frame = p[34]
-        if frame not in _GLOBAL_FRAMES:
-            self.ep.statustext(_WARNING, "Guided: frame %d not supported" % frame)
-            return _MISSION_UNSUPPORTED_FRAME
-        import struct
-
-        x, y = struct.unpack_from("<ii" if is_int else "<ff", p, 16)
-        alt = struct.unpack_from("<f", p, 24)[0]
-        if is_int:
-            x, y = x / 1e7, y / 1e7
-        if frame in _RELATIVE_FRAMES:
-            alt += self.mission.home()[2]
-        here = self.hold_at or (self.sim.lat, self.sim.lon, self.sim.alt)
-        if p[35] == 3:  # change altitude only
-            x, y = here[0], here[1]
-        if not (-90.0 <= x <= 90.0 and -180.0 <= y <= 180.0) or alt != alt:
-            self.ep.statustext(_WARNING, "Guided: position out of range")
-            return _MISSION_DENIED
-        self._set_mode("GUIDED")
-        self.hold_at = (x, y, alt)
-        return _MISSION_ACCEPTED
 
     # --- failsafes --------------------------------------------------------------------------
     def failsafe(self, reason):
         """Hold at once, return FS_HOLD_S seconds later unless the input comes back."""
         status = self.status
         if status is None or not status.armed or self.landed == ON_GROUND or self.mode in ("RTL", "LAND"):
-            self.ep.statustext(_WARNING, "Failsafe: " + reason)
+            self.ep.statustext(WARNING, "Failsafe: " + reason)
             return
         hold = self.mission.setting(None, "FS_HOLD_S", 5.0)
         mode = self.mode
         self._set_mode("LOITER")
         self.fs_left, self.fs_reason, self.fs_mode = hold, reason, mode
-        self.ep.statustext(_WARNING, "Failsafe: %s: holding, RTL in %.0f s" % (reason, hold))
+        self.ep.statustext(WARNING, "Failsafe: %s: holding, RTL in %.0f s" % (reason, hold))
 
     def failsafe_clear(self, reason):
         if self.fs_left is not None:
             self.fs_left = None
-            self.ep.statustext(_INFO, "Failsafe: %s: holding here" % reason)
+            self.ep.statustext(INFO, "Failsafe: %s: holding here" % reason)
 
     def _failsafe_tick(self, dt):
         if self.fs_left is None:
             return
-        if self.fs_mode in _PILOT_MODES and self.inputs is not None and self.inputs.demand(self.fs_mode, 0.0) is not None:
+        if self.fs_mode in PILOT_MODES and self.inputs is not None and self.inputs.demand(self.fs_mode, 0.0) is not None:
             self.failsafe_clear("input back")
             return
         self.fs_left -= dt
         if self.fs_left <= 0:
             self.fs_left = None
-            self.ep.statustext(_WARNING, "Failsafe: %s: returning" % self.fs_reason)
+            self.ep.statustext(WARNING, "Failsafe: %s: returning" % self.fs_reason)
             self._set_mode("RTL")
 
     def _gcs_lost(self, link):
-        self.ep.statustext(_WARNING, "GCS lost on " + link.name)
+        self.ep.statustext(WARNING, "GCS lost on " + link.name)
         status = self.status
         for other in self.ep.links:
             if status.gcs_present(other):
@@ -603,6 +424,6 @@ class FlightPilot:
             self.failsafe("GCS lost")
 
     def _gcs_regained(self, link):
-        self.ep.statustext(_INFO, "GCS heard on " + link.name)
+        self.ep.statustext(INFO, "GCS heard on " + link.name)
         if self.fs_reason == "GCS lost":
             self.failsafe_clear("GCS back")

@@ -108,7 +108,7 @@ def test_takeoff_hold_and_land(vehicle):
     assert gcs_tools.run(m, 22, 0, 0, 0, 0, 0, 0, 20.0) == FAILED
     assert gcs_tools.statustext(m, "Takeoff: already flying") is not None
     assert gcs_tools.run(m, 400, 0) == DENIED
-    time.sleep(1.0)
+    time.sleep(0.5)
     assert abs(position(m).relative_alt - 10000) < 600  # still holding
     # Land: IN_PROGRESS, down, disarmed, ACCEPTED on touchdown.
     gcs_tools.command(m, 21)
@@ -122,7 +122,7 @@ def test_takeoff_hold_and_land(vehicle):
 
 
 def test_landed_state_goes_through_takeoff_in_air_landing(vehicle):
-    v, m = fly_vehicle(vehicle, "--set", "sim_climb=2")
+    v, m = fly_vehicle(vehicle, "--set", "sim_climb=4")
     gcs_tools.command(m, 511, 245, 100000)  # EXTENDED_SYS_STATE at 10 Hz
     assert wait_ack(m, 511)[0] == ACCEPTED
     assert gcs_tools.run(m, 400, 1) == ACCEPTED
@@ -183,7 +183,7 @@ def test_mode_changes_do_what_the_commands_do(vehicle):
     assert gcs_tools.run(m, 193, 0) == ACCEPTED
     assert heartbeat(m, lambda h: h.custom_mode == LOITER) is not None
     a = position(m)
-    time.sleep(1.0)
+    time.sleep(0.5)
     b = position(m)
     assert metres(a.lat, a.lon, b.lat, b.lon) < 0.5
     assert gcs_tools.run(m, 193, 1) == ACCEPTED
@@ -193,7 +193,7 @@ def test_mode_changes_do_what_the_commands_do(vehicle):
     # Mode LOITER by SET_MODE: holds.
     set_mode(m, LOITER)
     a = position(m)
-    time.sleep(1.0)
+    time.sleep(0.5)
     assert metres(a.lat, a.lon, position(m).lat, position(m).lon) < 0.5
     assert gcs_tools.run(m, 17) == ACCEPTED  # NAV_LOITER_UNLIM: here
     # Mode RTL by SET_MODE: home (back over it, then down).

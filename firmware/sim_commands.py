@@ -1,0 +1,191 @@
+"""The simulated vehicle's flight commands (firmware/sim_pilot.py's FlightPilot takes
+them as its own: this is the half of it that answers ground stations). Each handler
+is registered in ep.commands by FlightPilot._hooks and returns a MAV_RESULT; a refusal
+says why in a STATUSTEXT. NAV_TAKEOFF and NAV_LAND answer IN_PROGRESS and finish when
+the flight does (FlightPilot._finish).
+"""
+import struct
+
+ON_GROUND = 1  # MAV_LANDED_STATE
+IN_AIR = 2
+TAKING_OFF = 3
+LANDING = 4
+
+ACCEPTED = 0  # MAV_RESULT
+DENIED = 2
+FAILED = 4
+IN_PROGRESS = 5
+WARNING = 4  # MAV_SEVERITY
+INFO = 6
+_INT32_MAX = 2147483647
+_RELATIVE_FRAMES = (3, 6, 10, 11)  # altitude above home (terrain frames: as above home)
+_GLOBAL_FRAMES = (0, 5) + _RELATIVE_FRAMES
+_MISSION_ACCEPTED = 0  # MAV_MISSION_RESULT
+_MISSION_UNSUPPORTED_FRAME = 2
+_MISSION_DENIED = 14
+PILOT_MODES = ("STABILIZE", "ALT_HOLD", "POSITION", "OFFBOARD")
+_MAX_SPEED = 100.0  # m/s: the fastest a reposition may ask for
+
+
+class FlightCommands:
+    """The command handlers of FlightPilot (a mixin: they use its state and its _set_mode,
+    _defer, _refuse)."""
+
+    def _cmd_takeoff(self, cmd):
+        # param7: metres above home (COMMAND_INT in a global frame: MSL); NaN: MIS_TAKEOFF_ALT.
+        if self.status is None or not self.status.armed:
+            return self._refuse(DENIED, "Takeoff: disarmed")
+        if self.landed != ON_GROUND:
+            return self._refuse(FAILED, "Takeoff: already flying")
+        ground = self.mission.ground()
+        if not cmd.finite(7):
+            alt = self.mission.setting(None, "MIS_TAKEOFF_ALT", 10.0)
+        elif cmd.is_int and cmd.frame in (0, 5):
+            alt = cmd.float(7) - ground
+        else:
+            alt = cmd.float(7)
+        if not 0.5 <= alt <= 10000.0:
+            return self._refuse(DENIED, "Takeoff: altitude %.1f m out of range" % alt)
+        self._set_mode("TAKEOFF")
+        self.climb_to = ground + alt
+        self.ep.statustext(INFO, "Takeoff to %.1f m" % alt)
+        return self._defer(cmd)
+
+    def _cmd_land(self, cmd):
+        status = self.status
+        if status is None or not status.armed:
+            return self._refuse(DENIED, "Land: disarmed")
+        if self.landed == ON_GROUND:
+            status.arm(False, True)
+            self.ep.statustext(INFO, "Land: on the ground: disarmed")
+            return ACCEPTED
+        at = self._point(cmd)
+        self._set_mode("LAND")
+        if at is not None and (at[0] or at[1]):
+            self.land_at = (at[0], at[1])
+        return self._defer(cmd)
+
+    def _cmd_rtl(self, cmd):
+        refused = self._flying("RTL")
+        if refused is not None:
+            return refused
+        self._set_mode("RTL")
+        return ACCEPTED
+
+    def _cmd_reposition(self, cmd):
+        # param1 speed (-1: default), param4 yaw (NaN: keep), x/y lat/lon (INT32_MAX: keep), z alt.
+        refused = self._flying("Reposition")
+        if refused is not None:
+            return refused
+        if cmd.is_int and cmd.frame not in _GLOBAL_FRAMES:
+            return self._refuse(DENIED, "Reposition: frame %d not supported" % cmd.frame)
+        point = self._point(cmd)
+        if point is None:
+            return self._refuse(DENIED, "Reposition: position out of range")
+        speed = min(cmd.float(1), _MAX_SPEED) if cmd.finite(1) and cmd.float(1) > 0 else None
+        yaw = cmd.float(4) % 360.0 if cmd.finite(4) else None
+        self._set_mode("GUIDED")
+        self.hold_at, self.guided_speed, self.guided_yaw = point, speed, yaw
+        return ACCEPTED
+
+    def _point(self, cmd):
+        """(lat, lon, alt MSL) from params 5-7 (each kept from the hold point when unset:
+        INT32_MAX or NaN), or None if out of range."""
+        here = self.hold_at or (self.sim.lat, self.sim.lon, self.sim.alt)
+        if cmd.is_int:
+            lat = here[0] if cmd.int(5) == _INT32_MAX else cmd.float(5)
+            lon = here[1] if cmd.int(6) == _INT32_MAX else cmd.float(6)
+        else:
+            lat = cmd.float(5) if cmd.finite(5) else here[0]
+            lon = cmd.float(6) if cmd.finite(6) else here[1]
+        alt = here[2]
+        if cmd.finite(7):
+            alt = cmd.float(7)
+            if cmd.is_int and cmd.frame in _RELATIVE_FRAMES:
+                alt += self.mission.home()[2]
+        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+            return None
+        return lat, lon, alt
+
+    def _cmd_change_speed(self, cmd):
+        kind = cmd.float(1) if cmd.finite(1) else 1.0
+        speed = cmd.float(2) if cmd.finite(2) else -1.0
+        if not self.mission.change_speed(kind, speed):
+            return self._refuse(DENIED, "Speed: %.1f m/s out of range" % speed)
+        self.guided_speed = None
+        return ACCEPTED
+
+    def _cmd_loiter(self, cmd):
+        # NAV_LOITER_UNLIM: hold here, or at params 5-7 where given.
+        refused = self._flying("Loiter")
+        if refused is not None:
+            return refused
+        point = self._point(cmd)
+        if point is None:
+            return self._refuse(DENIED, "Loiter: position out of range")
+        if not cmd.is_int and not cmd.float(5) and not cmd.float(6):
+            point = (self.sim.lat, self.sim.lon, point[2])  # 0, 0: here
+        self._set_mode("LOITER")
+        self.hold_at = point
+        return ACCEPTED
+
+    def _cmd_pause_continue(self, cmd):
+        # param1 0: hold where it is; 1: continue in the mode paused.
+        if cmd.finite(1) and cmd.float(1) == 0:
+            refused = self._flying("Pause")
+            if refused is not None:
+                return refused
+            if self.mode != "LOITER":
+                paused = (self.mode, self.hold_at, self.guided_speed, self.guided_yaw)
+                self._set_mode("LOITER")
+                self.paused_mode = paused
+            return ACCEPTED
+        if self.paused_mode is None:
+            return self._refuse(DENIED, "Continue: nothing paused")
+        (mode, hold_at, speed, yaw), self.paused_mode = self.paused_mode, None
+        self._set_mode(mode)
+        if mode == "GUIDED":  # on to where it was going
+            self.hold_at, self.guided_speed, self.guided_yaw = hold_at, speed, yaw
+        return ACCEPTED
+
+    def _cmd_mission_start(self, cmd):
+        # param1: first item, param2: last item (0 as QGroundControl sends it: to the end).
+        runner = self.runner
+        if not self.ep.allows(cmd.link):
+            return DENIED
+        if runner.store.count == 0:
+            return self._refuse(DENIED, "Mission: no mission")
+        if self.status is None or not self.status.armed:
+            return self._refuse(DENIED, "Mission: disarmed, arm first")
+        first = 0 if cmd.nan(1) else cmd.int(1)
+        last = -1 if cmd.nan(2) else cmd.int(2)
+        if not runner.start(first, last):
+            return self._refuse(DENIED, "Mission: no item %d" % first)
+        self._set_mode("AUTO")
+        return ACCEPTED
+
+    def _guided_item(self, link, p, is_int):
+        """MISSION_ITEM(_INT) with current 2 (go there: ArduPilot's guided waypoint) or 3
+        (change altitude), as MAVProxy's `guided` sends -> MAV_MISSION_RESULT."""
+        if self.status is None or not self.status.armed or self.landed == ON_GROUND:
+            self.ep.statustext(WARNING, "Guided: not flying")
+            return _MISSION_DENIED
+        frame = p[34]
+        if frame not in _GLOBAL_FRAMES:
+            self.ep.statustext(WARNING, "Guided: frame %d not supported" % frame)
+            return _MISSION_UNSUPPORTED_FRAME
+        x, y = struct.unpack_from("<ii" if is_int else "<ff", p, 16)
+        alt = struct.unpack_from("<f", p, 24)[0]
+        if is_int:
+            x, y = x / 1e7, y / 1e7
+        if frame in _RELATIVE_FRAMES:
+            alt += self.mission.home()[2]
+        here = self.hold_at or (self.sim.lat, self.sim.lon, self.sim.alt)
+        if p[35] == 3:  # change altitude only
+            x, y = here[0], here[1]
+        if not (-90.0 <= x <= 90.0 and -180.0 <= y <= 180.0) or alt != alt:
+            self.ep.statustext(WARNING, "Guided: position out of range")
+            return _MISSION_DENIED
+        self._set_mode("GUIDED")
+        self.hold_at = (x, y, alt)
+        return _MISSION_ACCEPTED
