@@ -40,7 +40,7 @@ MODE_NUMBERING = "auto"  # per link, as its ground station reads modes (modes.py
 # inputs (mavstack/services/inputs.py)
 INPUT_TIMEOUT_MS = 1000  # an input that stops this long is lost: on_input_lost (the simulator's failsafe)
 RC_OVERRIDE_TIMEOUT_MS = 3000  # an RC override channel not set again this long goes back to the radio
-RAM_BUDGET = 384 * 1024  # heap the vehicle may hold after start-up (main.py reports it): every service and the simulator, 64-bit pointers
+RAM_BUDGET = 416 * 1024  # heap the vehicle may hold after start-up (main.py reports it): every service and the simulator (its flight modes, commands and failsafes ~40 KB), 64-bit pointers
 
 
 def transports():
