@@ -405,7 +405,8 @@ class FlightPilot(FlightCommands):
     def _failsafe_tick(self, dt):
         if self.fs_left is None:
             return
-        if self.fs_mode in PILOT_MODES and self.inputs is not None and self.inputs.demand(self.fs_mode, 0.0) is not None:
+        inputs = self.inputs
+        if self.fs_mode in PILOT_MODES and inputs is not None and inputs.demand(self.fs_mode, 0.0) is not None:
             self.failsafe_clear("input back")
             return
         self.fs_left -= dt

@@ -135,7 +135,8 @@ class Simulator:
         qw, qx, qy, qz = _quaternion(roll, pitch, yaw)
         tm.attitude_quaternion(qw, qx, qy, qz, p, q, r)
         tm.global_position(lat_e7, lon_e7, round(self.alt * 1000), round(rel * 1000),
-                           _int16(self.vn * 100), _int16(self.ve * 100), _int16(self.vd * 100), round(hdg * 100) % 36000)
+                           _int16(self.vn * 100), _int16(self.ve * 100), _int16(self.vd * 100),
+                           round(hdg * 100) % 36000)
         x = math.radians(self.lat - HOME_LAT) * EARTH_RADIUS
         y = math.radians(self.lon - HOME_LON) * EARTH_RADIUS * math.cos(math.radians(self.lat))
         tm.local_position(x, y, -(self.alt - HOME_ALT), self.vn, self.ve, self.vd)
