@@ -10,6 +10,8 @@ profile for another board, a port with no MicroPython on it, a board whose firmw
 makes another .mpy version and a missing port are refused with one line and mavctl's
 exit status.
 """
+import contextlib
+import io
 import os
 import re
 import subprocess
@@ -19,7 +21,7 @@ import threading
 import pytest
 
 from conftest import ROOT
-from mavctl_tools import mavctl, ok, write_test_plan
+from mavctl_tools import mavctl, mavctl_cli, ok, write_test_plan
 from test_mcu import _gate
 
 sys.path.insert(0, os.path.join(ROOT, "mcu"))
@@ -36,6 +38,19 @@ def flash(*args, timeout=300):
                        timeout=timeout, cwd=ROOT)
     assert "Traceback" not in r.stderr, r.stderr
     return r
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def flash_on_terminal(*args):
+    """`mavctl flash` in this process, its stderr a terminal (where progress is drawn)."""
+    out, err = io.StringIO(), _Terminal()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        status = mavctl_cli.main(["flash"] + [str(a) for a in args])
+    return subprocess.CompletedProcess(args, status, out.getvalue(), err.getvalue())
 
 
 def one_line_error(r, status, text):
@@ -85,15 +100,17 @@ def test_flash_end_to_end(board, tmp_path):
     one_line_error(r, EXIT_USAGE, "board profile qemu_m0 is for a nRF51")
     assert repl(repl_pty, "import os\nprint(os.listdir())").strip() == "[]"
 
-    # The first flash copies the whole tree, resets the board and sees the vehicle.
-    r = flash("--board", "qemu_m3", "--port", repl_pty, "--mavlink", mav_pty, "--timeout", 120)
+    # The first flash copies the whole tree, resets the board and sees the vehicle; on a
+    # terminal it draws a progress bar over the bytes copied.
+    r = flash_on_terminal("--board", "qemu_m3", "--port", repl_pty, "--mavlink", mav_pty, "--timeout", 120)
     assert r.returncode == 0, (r.stdout, r.stderr)
+    tree_bytes = re.search(r"flash: \d+ files, (\d+) bytes", r.stdout).group(1)
+    assert re.search(r"flash: +\d+%%\|[^|]*\| \d+/%s " % tree_bytes, r.stderr), r.stderr[-500:]
     assert "building for armv7m" in r.stdout
     total = int(re.search(r"flash: (\d+) files, \d+ bytes", r.stdout).group(1))
     assert "flash: %d files copied, 0 unchanged" % total in r.stdout, r.stdout
     assert "the vehicle is up: HEARTBEAT from system 1 on %s" % mav_pty in r.stdout
     assert "the board says: qemu_m3 ready" in r.stdout
-    assert r.stderr == ""  # no progress bar in a pipe
 
     # mavctl over the MAVLink UART: parameters, a QGroundControl .plan, arming.
     link = "serial:%s:115200" % mav_pty
@@ -114,6 +131,7 @@ def test_flash_end_to_end(board, tmp_path):
     r = flash("--board", "qemu_m3", "--port", repl_pty, "--mavlink", mav_pty, "--timeout", 120)
     assert r.returncode == 0, (r.stdout, r.stderr)
     assert "flash: 0 files copied, %d unchanged, 0 stale removed" % total in r.stdout, r.stdout
+    assert r.stderr == ""  # no progress bar in a pipe
     assert "the vehicle is up" in r.stdout
     assert "BRD_SERIAL_NUM" in ok(mavctl(link, "params", "list"))
 
