@@ -59,6 +59,8 @@ class FlightCommands:
             status.arm(False, True)
             self.ep.statustext(INFO, "Land: on the ground: disarmed")
             return ACCEPTED
+        if not self._allowed(cmd):
+            return DENIED
         at = self._point(cmd)
         self._set_mode("LAND")
         if at is not None and (at[0] or at[1]):
@@ -79,6 +81,8 @@ class FlightCommands:
             return refused
         if cmd.is_int and cmd.frame not in _GLOBAL_FRAMES:
             return self._refuse(DENIED, "Reposition: frame %d not supported" % cmd.frame)
+        if not self._allowed(cmd):
+            return DENIED
         point = self._point(cmd)
         if point is None:
             return self._refuse(DENIED, "Reposition: position out of range")
@@ -87,6 +91,12 @@ class FlightCommands:
         self._set_mode("GUIDED")
         self.hold_at, self.guided_speed, self.guided_yaw = point, speed, yaw
         return ACCEPTED
+
+    def _allowed(self, cmd):
+        """Is the command's target inside the safety area (services/geography.py), if the
+        board has one? It says why not in a STATUSTEXT."""
+        geo = self.ep.services.get("geography")
+        return geo is None or geo.allows_command(cmd)
 
     def _point(self, cmd):
         """(lat, lon, alt MSL) from params 5-7 (each kept from the hold point when unset:
@@ -120,6 +130,8 @@ class FlightCommands:
         refused = self._flying("Loiter")
         if refused is not None:
             return refused
+        if not self._allowed(cmd):
+            return DENIED
         point = self._point(cmd)
         if point is None:
             return self._refuse(DENIED, "Loiter: position out of range")
@@ -178,6 +190,11 @@ class FlightCommands:
         alt = struct.unpack_from("<f", p, 24)[0]
         if is_int:
             x, y = x / 1e7, y / 1e7
+        geo = self.ep.services.get("geography")
+        if (geo is not None and p[35] == 2 and -90.0 <= x <= 90.0 and -180.0 <= y <= 180.0 and alt == alt
+                and not geo.allows_degrees(x, y, alt)):
+            self.ep.statustext(WARNING, "Guided: target outside the allowed area")
+            return _MISSION_DENIED
         if frame in _RELATIVE_FRAMES:
             alt += self.mission.home()[2]
         here = self.hold_at or (self.sim.lat, self.sim.lon, self.sim.alt)

@@ -398,3 +398,22 @@ def test_takeoff_mode_in_the_air_and_arming_in_land(vehicle):
     set_mode(m, LOITER)
     assert gcs_tools.run(m, 400, 1) == ACCEPTED
     assert heartbeat(m, lambda h: h.base_mode & ARMED).system_status == STANDBY  # on the ground
+
+
+def test_targets_outside_the_safety_area_are_refused(vehicle):
+    """SAFETY_SET_ALLOWED_AREA (services/geography.py): a reposition, loiter or guided
+    waypoint outside it is refused (DENIED / MISSION_ACK DENIED, and said); inside, flown."""
+    v, m = fly_vehicle(vehicle)
+    box = ((LAT0 - 5000) / 1e7, (LON0 - 5000) / 1e7, 0.0), ((LAT0 + 20000) / 1e7, (LON0 + 20000) / 1e7, 100.0)
+    m.mav.safety_set_allowed_area_send(1, 1, 0, *box[0], *box[1])
+    assert gcs_tools.listen(m, "SAFETY_ALLOWED_AREA", 5) is not None
+    takeoff(m)
+    m.mav.command_int_send(1, 1, 6, 192, 0, 0, -1, 1, 0, float("nan"), LAT0 - 9000, LON0, 15.0)
+    assert gcs_tools.ack(m, 192).result == DENIED
+    assert gcs_tools.statustext(m, "outside the allowed area") is not None
+    assert gcs_tools.run(m, 17, 0, 0, 0, 0, (LAT0 - 9000) / 1e7, LON0 / 1e7, 15.0) == DENIED
+    m.mav.mission_item_int_send(1, 1, 0, 6, 16, 2, 0, 0, 0, 0, 0, LAT0 - 9000, LON0, 12.0)
+    assert recv(m, "MISSION_ACK", 5).type == 14
+    m.mav.command_int_send(1, 1, 6, 192, 0, 0, -1, 1, 0, float("nan"), LAT0 + 9000, LON0, 15.0)
+    assert gcs_tools.ack(m, 192).result == ACCEPTED
+    assert position(m, lambda p: metres(p.lat, p.lon, LAT0 + 9000, LON0) < 1.0) is not None
