@@ -85,14 +85,18 @@ class Board:
         self.t.enter_raw_repl(soft_reset=False)
         return self
 
-    def exec(self, code):
+    def exec(self, code, timeout=60):
+        """Run code in the raw REPL -> what it printed (a slow board gets timeout seconds)."""
         from mpremote.transport import TransportError
 
         try:
-            return self.t.exec(code).decode(errors="replace")
+            out, err = self.t.exec_raw(code, timeout=timeout)
         except TransportError as e:
-            detail = str(e).strip().splitlines()
-            raise DeviceError("%s: the board failed: %s" % (self.port, detail[-1] if detail else e))
+            raise DeviceError("%s: the board did not answer: %s" % (self.port, e))
+        if err:
+            detail = err.decode(errors="replace").strip().splitlines()
+            raise DeviceError("%s: the board failed: %s" % (self.port, detail[-1] if detail else "?"))
+        return out.decode(errors="replace")
 
     def info(self):
         """(mpy version, sub-version, arch index or 0, MicroPython version, machine)."""
