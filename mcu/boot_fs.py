@@ -4,39 +4,37 @@ the GC heap at /flash and makes that the current directory, as a board mounts it
 The region keeps its contents across soft resets (not power-off): a blank one, as at
 power-on, is formatted. firmware.py fills REGION in from the profile's FS_REGION.
 """
-import os
-import uctypes
-import vfs
-
 REGION = (0, 0)  # (start, size): boards/<board>.py FS_REGION
-BLOCK = 512
 
 
-class RamBlockDevice:
-    """littlefs' block device over the region (the extended interface: offsets, erase)."""
+def _mount(start, size, block=512):
+    # Everything stays local: this runs in __main__, whose globals the REPL shares.
+    import os
+    import uctypes
+    import vfs
 
-    def __init__(self, start, size):
-        self.mem = memoryview(uctypes.bytearray_at(start, size))
-        self.count = size // BLOCK
+    class RamBlockDevice:
+        """littlefs' block device over the region (the extended interface: offsets, erase)."""
 
-    def readblocks(self, n, buf, off=0):
-        a = n * BLOCK + off
-        buf[:] = self.mem[a:a + len(buf)]
+        def __init__(self):
+            self.mem = memoryview(uctypes.bytearray_at(start, size))
 
-    def writeblocks(self, n, buf, off=0):
-        a = n * BLOCK + off
-        self.mem[a:a + len(buf)] = buf
+        def readblocks(self, n, buf, off=0):
+            a = n * block + off
+            buf[:] = self.mem[a:a + len(buf)]
 
-    def ioctl(self, op, arg):
-        if op == 4:  # block count
-            return self.count
-        if op == 5:  # block size
-            return BLOCK
-        return 0  # init, deinit, sync, erase: nothing to do in RAM
+        def writeblocks(self, n, buf, off=0):
+            a = n * block + off
+            self.mem[a:a + len(buf)] = buf
 
+        def ioctl(self, op, arg):
+            if op == 4:  # block count
+                return size // block
+            if op == 5:  # block size
+                return block
+            return 0  # init, deinit, sync, erase: nothing to do in RAM
 
-def mount():
-    dev = RamBlockDevice(*REGION)
+    dev = RamBlockDevice()
     try:
         fs = vfs.VfsLfs2(dev, mtime=False)
     except OSError:  # no filesystem there yet
@@ -46,5 +44,5 @@ def mount():
     os.chdir("/flash")
 
 
-mount()
-del mount, RamBlockDevice, os, uctypes, vfs
+_mount(*REGION)
+del _mount
