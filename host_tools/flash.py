@@ -358,9 +358,13 @@ def build_tree(args, out, arch, messages, native):
 
 
 def main(argv=None):
+    prog = os.path.basename(sys.argv[0] or "flash.py")
     ap = argparse.ArgumentParser(
-        description="Compile mavstack for a board and copy it there with mpremote.")
-    ap.add_argument("--board", required=True, help="profile in boards/ (pico, esp32, pyboard, unix)")
+        prog="mavctl flash" if prog == "mavctl" else prog,
+        description="Compile mavstack for a board, copy it there with mpremote, reset the board "
+                    "and wait for the vehicle's HEARTBEAT.")
+    ap.add_argument("--board", required=True,
+                    help="profile in boards/ (pico, esp32, pyboard, unix, qemu_m3)")
     ap.add_argument("--port", help="the board's REPL serial port (default: the one USB serial port)")
     ap.add_argument("--build-only", metavar="DIR",
                     help="write the tree the board would get into DIR; no device needed")
