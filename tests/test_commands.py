@@ -43,7 +43,7 @@ def test_arm_veto_can_ask_to_retry_later(vehicle):
 
 
 def test_modes_by_command_long_command_int_and_set_mode(vehicle):
-    v = start(vehicle)
+    v = start(vehicle, "--set", "application=0")  # the modes alone (the simulator vetoes AUTO without a mission)
     m = v.gcs()
     assert run(m, 176, 1 | 4, 3) == MAV_RESULT_ACCEPTED  # custom mode 3, AUTO
     hb = vehicle_heartbeat(m, lambda h: h.custom_mode == 3)
@@ -110,7 +110,7 @@ def test_unknown_command_targets_broadcast_and_resend(vehicle):
     t0 = time.time()
     assert run(m, 31999) == MAV_RESULT_UNSUPPORTED
     assert time.time() - t0 < 1.0
-    assert run(m, 22, 0, 0, 0, 0, 0, 0, 10) == MAV_RESULT_UNSUPPORTED  # NAV_TAKEOFF: no handler on this vehicle
+    assert run(m, 42600, 1, 1) == MAV_RESULT_UNSUPPORTED  # DO_WINCH: no handler on this vehicle
     command(m, 520, 1, target=(2, 1))  # another system
     command(m, 520, 1, target=(1, 99))  # another component
     assert recv(m, "COMMAND_ACK", 1.5) is None
@@ -217,21 +217,21 @@ def test_command_sent_again_after_its_ack_runs_again(vehicle):
     _set(m, "SIM_WIND_SPD", 9.0)
     assert run(m, 180, index, 4.0) == MAV_RESULT_ACCEPTED
     assert _param(m, "SIM_WIND_SPD").param_value == 4.0
-    # DO_SET_MODE, SET_MODE (#11) to another mode, the same DO_SET_MODE again.
-    assert run(m, 176, 1 | 4, 3) == MAV_RESULT_ACCEPTED
-    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 3) is not None
+    # DO_SET_MODE (ALT_HOLD), SET_MODE (#11) to another mode (LOITER), the same DO_SET_MODE again.
+    assert run(m, 176, 1, 2) == MAV_RESULT_ACCEPTED
+    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 2) is not None
     m.mav.set_mode_send(1, 1 | 16, 5)
     assert vehicle_heartbeat(m, lambda h: h.custom_mode == 5) is not None
-    assert run(m, 176, 1 | 4, 3) == MAV_RESULT_ACCEPTED
-    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 3, timeout=3) is not None
+    assert run(m, 176, 1, 2) == MAV_RESULT_ACCEPTED
+    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 2, timeout=3) is not None
     # COMMAND_INT has no confirmation: sent again after its ACK, it runs again too.
-    m.mav.command_int_send(1, 1, 0, 176, 0, 0, 1 | 4, 3, 0, 0, 0, 0, 0)
+    m.mav.command_int_send(1, 1, 0, 176, 0, 0, 1, 2, 0, 0, 0, 0, 0)
     assert ack(m, 176).result == MAV_RESULT_ACCEPTED
     m.mav.set_mode_send(1, 1 | 16, 5)
     assert vehicle_heartbeat(m, lambda h: h.custom_mode == 5) is not None
-    m.mav.command_int_send(1, 1, 0, 176, 0, 0, 1 | 4, 3, 0, 0, 0, 0, 0)
+    m.mav.command_int_send(1, 1, 0, 176, 0, 0, 1, 2, 0, 0, 0, 0, 0)
     assert ack(m, 176).result == MAV_RESULT_ACCEPTED
-    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 3, timeout=3) is not None
+    assert vehicle_heartbeat(m, lambda h: h.custom_mode == 2, timeout=3) is not None
     # Power lost (kill -9): what is on disk is the 7 the second save acknowledged.
     v.kill()
     v2 = start(vehicle, "--set", "param_autosave_ms=0")
