@@ -246,10 +246,35 @@ class Simulator:
                    0, round((25.0 + 5.0 * self.throttle) * 100), -1, int(left_mah / (current * 1000.0) * 3600.0))
 
     def move(self, dn, de, dd):
-        """Move by metres north, east and down (not below the ground: the home altitude)."""
-        self.lat += math.degrees(dn / EARTH_RADIUS)
-        self.lon += math.degrees(de / (EARTH_RADIUS * math.cos(math.radians(self.lat))))
+        """Move by metres north, east and down (not below the ground: the home altitude),
+        but not out of the safety area (services/geography.py): a step that would cross
+        its border is not taken, so the vehicle stops there, whatever flies it (sticks,
+        setpoints, a mission); one that brings it back in from outside is."""
+        lat = self.lat + math.degrees(dn / EARTH_RADIUS)
+        lon = self.lon + math.degrees(de / (EARTH_RADIUS * math.cos(math.radians(self.lat))))
+        if not self._inside(lat, lon) and self._inside(self.lat, self.lon):
+            self.vn = self.ve = 0.0
+            if not self._at_border:
+                self._at_border = True
+                self.ep.statustext(4, "Stopped at the allowed area's border")
+            lat, lon = self.lat, self.lon
+        else:
+            self._at_border = False
+        self.lat, self.lon = lat, lon
         self.alt = max(self.alt - dd, self.pilot.mission.ground())
+
+    _at_border = False
+
+    def _inside(self, lat, lon):
+        # Horizontally: the area's altitudes are in its frame's sense (MSL or relative).
+        geo = self.ep.services.get("geography")
+        if geo is None or not geo.area_set:
+            return True
+        if not geo.area_local:
+            return geo.allows_degrees(lat, lon)
+        x = math.radians(lat - HOME_LAT) * EARTH_RADIUS
+        y = math.radians(lon - HOME_LON) * EARTH_RADIUS * math.cos(math.radians(lat))
+        return geo.allows_local(x, y)
 
 
 # Satellites in view: prn, elevation (deg), azimuth (deg), snr (dB).

@@ -417,3 +417,28 @@ def test_targets_outside_the_safety_area_are_refused(vehicle):
     m.mav.command_int_send(1, 1, 6, 192, 0, 0, -1, 1, 0, float("nan"), LAT0 + 9000, LON0, 15.0)
     assert gcs_tools.ack(m, 192).result == ACCEPTED
     assert position(m, lambda p: metres(p.lat, p.lon, LAT0 + 9000, LON0) < 1.0) is not None
+
+
+def test_the_vehicle_stops_at_the_safety_area_border(vehicle):
+    """Flown by velocity setpoints (GUIDED takes them, as ArduPilot does) straight north
+    toward a border 200 m away: the vehicle stops there and says so."""
+    v, m = fly_vehicle(vehicle)
+    north = LAT0 + 18000  # about 200 m
+    box = ((LAT0 - 20000) / 1e7, (LON0 - 20000) / 1e7, 0.0), (north / 1e7, (LON0 + 20000) / 1e7, 1000.0)
+    m.mav.safety_set_allowed_area_send(1, 1, 0, *box[0], *box[1])
+    assert gcs_tools.listen(m, "SAFETY_ALLOWED_AREA", 5) is not None
+    takeoff(m)
+    assert set_mode(m, GUIDED) is not None
+    deadline = time.time() + 30
+    stopped = None
+    while time.time() < deadline and stopped is None:
+        m.mav.heartbeat_send(6, 8, 0, 0, 0)  # (a ground station that stays present)
+        m.mav.set_position_target_local_ned_send(0, 1, 1, 1, 0b010111000111, 0, 0, 0, 30.0, 0, 0, 0, 0, 0, 0, 0)
+        stopped = recv(m, "STATUSTEXT", 0.1, lambda t: "border" in t.text)
+    assert stopped is not None
+    for _ in range(10):  # still pushed north: it stays at the border
+        m.mav.set_position_target_local_ned_send(0, 1, 1, 1, 0b010111000111, 0, 0, 0, 30.0, 0, 0, 0, 0, 0, 0, 0)
+        time.sleep(0.1)
+    p = position(m)
+    # At the border (the area's corners travel as float32: within a metre of it), not past it.
+    assert north - 200 <= p.lat <= north + 10, (p.lat - north)
