@@ -92,6 +92,26 @@ class FlightCommands:
         self.hold_at, self.guided_speed, self.guided_yaw = point, speed, yaw
         return ACCEPTED
 
+    def _cmd_goto(self, cmd):
+        # The seed's OVERRIDE_GOTO "hold at the specified position" (the seed_commands
+        # service checked the area and control): param3 the MAV_FRAME, param4 yaw (deg),
+        # param5-7 the position. Flown as a reposition: GUIDED, there, holding.
+        refused = self._flying("Goto")
+        if refused is not None:
+            return refused
+        frame = cmd.int(3) if cmd.finite(3) else 0
+        if frame not in _GLOBAL_FRAMES:
+            return self._refuse(DENIED, "Goto: frame %d not supported" % frame)
+        point = self._point(cmd)
+        if point is None:
+            return self._refuse(DENIED, "Goto: position out of range")
+        if cmd.finite(7) and frame in _RELATIVE_FRAMES and not cmd.is_int:  # (_point did COMMAND_INT's)
+            point = (point[0], point[1], point[2] + self.mission.home()[2])
+        self._set_mode("GUIDED")
+        self.hold_at, self.guided_speed = point, None
+        self.guided_yaw = cmd.float(4) % 360.0 if cmd.finite(4) else None
+        return ACCEPTED
+
     def _allowed(self, cmd):
         """Is the command's target inside the safety area (services/geography.py), if the
         board has one? It says why not in a STATUSTEXT."""

@@ -94,6 +94,9 @@ class FlightPilot(FlightCommands):
                 commands[300] = self._cmd_mission_start  # (in place of the runner's: it flies)
         if self.missions is not None:
             self.missions.on_guided = self._guided_item
+        seed = self.ep.services.get("seed_commands")
+        if seed is not None:
+            seed.on_goto = self._cmd_goto  # the seed's OVERRIDE_GOTO to a position
         inputs = self.ep.services.get("inputs")
         if inputs is not None and self.inputs is not None:
             from mavstack.services.inputs import POSITION_GLOBAL, POSITION_LOCAL

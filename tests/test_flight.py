@@ -442,3 +442,19 @@ def test_the_vehicle_stops_at_the_safety_area_border(vehicle):
     p = position(m)
     # At the border (the area's corners travel as float32: within a metre of it), not past it.
     assert north - 200 <= p.lat <= north + 10, (p.lat - north)
+
+
+def test_the_seeds_override_goto_holds_there_and_continues(vehicle):
+    # seed: OVERRIDE_GOTO
+    """MAV_CMD_OVERRIDE_GOTO (the seed's): hold at a specified position flies there in
+    GUIDED and holds; DO_CONTINUE goes back to the mission's mode."""
+    v, m = fly_vehicle(vehicle)
+    takeoff(m)
+    there = (LAT0 + 9000) / 1e7, (LON0 + 4000) / 1e7
+    assert gcs_tools.run(m, 252, 0, 3, 3, float("nan"), there[0], there[1], 15.0) == ACCEPTED  # relative alt
+    assert heartbeat(m, lambda h: h.custom_mode == GUIDED) is not None
+    p = position(m, lambda p: metres(p.lat, p.lon, LAT0 + 9000, LON0 + 4000) < 1.0)
+    assert p is not None
+    p = position(m, lambda p: abs(p.relative_alt - 15000) < 500)
+    assert p is not None
+    assert gcs_tools.run(m, 252, 2) == DENIED  # neither hold nor continue

@@ -119,14 +119,15 @@ def test_remaining_commands(vehicle):
     assert run(m, 252, 1) == MAV_RESULT_ACCEPTED  # continue: AUTO
     assert vehicle_heartbeat(m, lambda h: h.custom_mode == 3) is not None
     assert run(m, 252, 7) == MAV_RESULT_DENIED
-    # A position outside the allowed area: DENIED; inside: the application's (none here).
+    # A position outside the allowed area: DENIED; inside: the application's.
     m.mav.safety_set_allowed_area_send(1, 1, 0, 47.0, 8.0, 0.0, 47.5, 8.6, 100.0)
     assert recv(m, "SAFETY_ALLOWED_AREA", 5) is not None
     assert run(m, 252, 0, 3, 0, 0, 48.0, 8.5, 20.0) == MAV_RESULT_DENIED
     assert statustext(m, "Target outside the allowed area") is not None
     m.mav.command_int_send(1, 1, 6, 252, 0, 0, 0, 3, 0, 0, 480000000, 85000000, 20.0)  # as COMMAND_INT
     assert recv(m, "COMMAND_ACK", 5, lambda a: a.command == 252).result == MAV_RESULT_DENIED
-    assert run(m, 252, 0, 3, 0, 0, 47.2, 8.5, 20.0) == MAV_RESULT_UNSUPPORTED
+    assert run(m, 252, 0, 3, 0, 0, 47.2, 8.5, 20.0) == MAV_RESULT_DENIED  # inside: the simulator's, but on the ground
+    assert statustext(m, "Goto: disarmed") is not None  # (flown: tests/test_flight.py)
     assert run(m, 80, 3, 0, 0, 0, 47.4, 8.55, 20.0) == MAV_RESULT_ACCEPTED
     assert run(m, 80, 9) == MAV_RESULT_DENIED
     assert run(m, 81, 1, 1) == MAV_RESULT_UNSUPPORTED
