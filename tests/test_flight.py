@@ -458,3 +458,27 @@ def test_the_seeds_override_goto_holds_there_and_continues(vehicle):
     p = position(m, lambda p: abs(p.relative_alt - 15000) < 500)
     assert p is not None
     assert gcs_tools.run(m, 252, 2) == DENIED  # neither hold nor continue
+
+
+def test_loiter_time_and_turns_in_a_mission(vehicle):
+    # seed: NAV_LOITER_TIME, NAV_LOITER_TURNS
+    """A mission's timed loiter (param1 s) and loiter of turns (param1 turns, param3
+    radius) hold the vehicle there that long before the next item."""
+    v, m = fly_vehicle(vehicle)
+    items = [Item(3, 22, 0, 1, 0, 0, 0, float("nan"), 0, 0, 10.0),
+             Item(3, 19, 0, 1, 2.0, 0, 0, float("nan"), LAT0 + 4500, LON0, 10.0),  # 2 s there
+             Item(3, 18, 0, 1, 1.0, 0, 10.0, float("nan"), LAT0 + 4500, LON0 + 4500, 10.0),  # one turn, 10 m
+             Item(3, 16, 0, 1, 0, 0, 0, float("nan"), LAT0, LON0, 10.0)]
+    assert MissionClient(m).upload(items) == 0
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    assert gcs_tools.run(m, 300, 0, 0) == ACCEPTED
+    at = {}
+    deadline = time.time() + 40
+    while time.time() < deadline and 3 not in at:
+        r = gcs_tools.listen(m, "MISSION_ITEM_REACHED", deadline - time.time())
+        if r is not None and r.seq not in at:
+            at[r.seq] = time.time()
+    assert sorted(at) == [0, 1, 2, 3]
+    # Item 2 ends no sooner than the flight to it (450 m) and its turn (2 pi 10 m) after item 1.
+    assert at[2] - at[1] >= 1.5
+    v.check_alive()

@@ -24,6 +24,11 @@ def _figures(r):
 @pytest.mark.parametrize("portable", [False, True])
 @pytest.mark.parametrize("dialect", ["common", "seed2012"])
 def test_inputs_steady_under_heap_lock(dialect, portable):
+    # seed: MANUAL_SETPOINT, HIL_STATE, HIL_RC_INPUTS_RAW, GLOBAL_VISION_POSITION_ESTIMATE
+    # seed: VISION_POSITION_ESTIMATE, VISION_SPEED_ESTIMATE, VICON_POSITION_ESTIMATE
+    # seed: SET_ROLL_PITCH_YAW_SPEED_THRUST, SET_QUAD_MOTORS_SETPOINT, SETPOINT_6DOF
+    # seed: SET_QUAD_SWARM_ROLL_PITCH_YAW_THRUST, SET_QUAD_SWARM_LED_ROLL_PITCH_YAW_THRUST
+    # (each delivered into its record, read by every accessor, counted and heap-locked)
     env = os.environ
     if portable:
         env["MAVSTACK_PORTABLE"] = "1"
