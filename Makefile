@@ -27,8 +27,10 @@ $(STAMP): requirements.txt requirements-nodeps.txt host_tools/pyproject.toml
 	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e host_tools
 	touch $(STAMP)
 
+# Two workers, each taking whole files (a file's vehicles and emulated boards stay
+# together): most of a test's time is spent waiting on a vehicle, not computing.
 test: setup mcu-tools
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -n 2 --dist loadfile tests
 
 # Install the MCU stage's tools where that can be done (root, apt-get); elsewhere say
 # loudly that the stage will be skipped (under CI=true its tests fail instead).
@@ -46,8 +48,10 @@ mcu-deps:
 mcu-firmware: setup mcu-tools
 	$(PY) mcu/firmware.py build
 
-mcu-test: setup mcu-tools
-	$(PY) -m pytest -q tests/test_mcu.py tests/test_mcu_vehicle.py tests/test_flash_mcu.py
+mcu-# Two workers, each taking whole files (a file's vehicles and emulated boards stay
+# together): most of a test's time is spent waiting on a vehicle, not computing.
+test: setup mcu-tools
+	$(PY) -m pytest -q -n 2 --dist loadfile tests/test_mcu.py tests/test_mcu_vehicle.py tests/test_flash_mcu.py
 
 # The fuzzer (tests/fuzz/engine.py) for SECONDS; a one-minute run is part of `make test`.
 SECONDS ?= 600
