@@ -48,10 +48,8 @@ mcu-deps:
 mcu-firmware: setup mcu-tools
 	$(PY) mcu/firmware.py build
 
-mcu-# Two workers, each taking whole files (a file's vehicles and emulated boards stay
-# together): most of a test's time is spent waiting on a vehicle, not computing.
-test: setup mcu-tools
-	$(PY) -m pytest -q -n 2 --dist loadfile tests/test_mcu.py tests/test_mcu_vehicle.py tests/test_flash_mcu.py
+mcu-test: setup mcu-tools
+	$(PY) -m pytest -q tests/test_mcu.py tests/test_mcu_vehicle.py tests/test_flash_mcu.py
 
 # The fuzzer (tests/fuzz/engine.py) for SECONDS; a one-minute run is part of `make test`.
 SECONDS ?= 600
