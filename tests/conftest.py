@@ -50,3 +50,22 @@ def vehicle(tmp_path):
     yield start
     for v in started:
         v.stop()
+
+
+SEED_XML = os.path.join(os.path.dirname(ROOT), "shared", "spec", "common-2012.xml")
+
+
+@pytest.fixture(scope="session")
+def seedmav(tmp_path_factory):
+    """pymavlink's generated module for the seed's message set (MAVLink 1.0): what a
+    seed-era ground station speaks (tests/test_seed_*.py, test_ftp_seed.py)."""
+    import importlib.util
+
+    from pymavlink.generator import mavgen
+
+    out = str(tmp_path_factory.mktemp("seedmav") / "seed2012mav.py")
+    mavgen.mavgen(mavgen.Opts(output=out, wire_protocol="1.0", language="Python3", validate=False), [SEED_XML])
+    spec = importlib.util.spec_from_file_location("seed2012mav", out)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

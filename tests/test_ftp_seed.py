@@ -3,32 +3,16 @@ vehicle running the seed's dialect (`--set dialect=seed2012`), from a ground sta
 built by pymavlink's generator from the seed's own XML: listing, reading and writing
 small files (binary-safe, resumed chunk by chunk over a lossy link), the seed's result
 codes for paths that leave the folder (2), the stack's own files (1) and a full store (3)."""
-import importlib.util
 import os
 import socket
 import time
 
 import pytest
 
-from conftest import ROOT
 from relay import LossyRelay
 
-SPEC = os.path.join(os.path.dirname(ROOT), "shared", "spec", "common-2012.xml")
 CHUNK = 240
 OK, NOT_PERMITTED, BAD_PATH, NO_SPACE = 0, 1, 2, 3
-
-
-@pytest.fixture(scope="module")
-def seed(tmp_path_factory):
-    """pymavlink's generated module for the seed's message set (MAVLink 1.0)."""
-    from pymavlink.generator import mavgen
-
-    out = str(tmp_path_factory.mktemp("seedmav") / "seed2012mav.py")
-    mavgen.mavgen(mavgen.Opts(output=out, wire_protocol="1.0", language="Python3", validate=False), [SPEC])
-    spec = importlib.util.spec_from_file_location("seed2012mav", out)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 class SeedGcs:
@@ -144,7 +128,7 @@ class SeedGcs:
 
 
 @pytest.fixture
-def seed_vehicle(vehicle, tmp_path, seed):
+def seed_vehicle(vehicle, tmp_path, seedmav):
     gcs = []
 
     def start(files=(), args=(), lossy=False):
@@ -159,7 +143,7 @@ def seed_vehicle(vehicle, tmp_path, seed):
             relay = LossyRelay(v.port, rate=0.1, seed=3)
             gcs.append(relay)
             port = relay.port
-        g = SeedGcs(seed, port)
+        g = SeedGcs(seedmav, port)
         g.vehicle = v
         gcs.append(g)
         time.sleep(0.5)  # the vehicle up

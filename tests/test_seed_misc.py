@@ -3,19 +3,16 @@ debug values and STATE_CORRECTION delivered (the simulated vehicle tells them ba
 calibration (accepted disarmed with progress, refused armed or not in control), the
 seed's remaining commands, and the setpoint echoes, from pymavlink ground stations of
 today's set and of the seed's (built from ../shared/spec/common-2012.xml)."""
-import importlib.util
-import os
 import socket
 import time
 
 import pytest
 
-from conftest import ROOT, recv
+from conftest import recv
 from gcs_tools import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED, ack, command, run,
                        statustext, vehicle_heartbeat)
 from mavctl_tools import signed_board
 
-SPEC = os.path.join(os.path.dirname(ROOT), "shared", "spec", "common-2012.xml")
 PASSKEY = "sesame"
 IN_PROGRESS = 5
 KEY = bytes(range(1, 33))
@@ -152,18 +149,6 @@ def test_remaining_commands_need_control(vehicle):
 
 
 # --- the seed's message set ---------------------------------------------------------------
-@pytest.fixture(scope="module")
-def seedmav(tmp_path_factory):
-    from pymavlink.generator import mavgen
-
-    out = str(tmp_path_factory.mktemp("seedmav") / "seed2012misc.py")
-    mavgen.mavgen(mavgen.Opts(output=out, wire_protocol="1.0", language="Python3", validate=False), [SPEC])
-    spec = importlib.util.spec_from_file_location("seed2012misc", out)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 class SeedStation:
     """A seed-era ground station on a UDP socket (MAVLink 1, the seed's messages)."""
 

@@ -3,7 +3,7 @@ MAVLink 1) against the unix vehicle running the seed's message set
 (`--set dialect=seed2012`): the whole parameter, mission and command round trip."""
 import math
 
-from test_seed_misc import SeedStation, seed_station, seedmav  # noqa: F401  (fixtures)
+from test_seed_misc import SeedStation, seed_station  # noqa: F401  (a fixture)
 
 MAV_PARAM_TYPE_REAL32 = 9
 
