@@ -77,6 +77,9 @@ class Gcs:
         mix)."""
         mav = self.m.mav
         kinds = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK")
+        # MISSION_ACK names no upload: a late or duplicated ACK of the previous one would
+        # pass for this one's. Let the link go quiet first, as command() does.
+        self.drain(0.3)
         got = self.ask(lambda: mav.mission_count_send(1, 1, len(items), mission_type), kinds)
         last_sent = None
         silent = 0

@@ -25,6 +25,7 @@ import pytest
 
 from conftest import FIRMWARE, MICROPYTHON, ROOT, Vehicle, free_udp_port, recv
 from fault_gcs import Gcs
+from lossy_world import items_for, same_items
 from pty_relay import PtyRelay
 from relay import LossyRelay
 
@@ -33,21 +34,6 @@ from pymavlink import mavutil
 TESTS_MPY = os.path.join(ROOT, "tests", "mpy")
 BOARDS = os.path.join(ROOT, "boards")
 sys.path.insert(0, BOARDS)
-
-
-def items_for(base, n):
-    return [(3, 16, 0.0, 2.0, 0.0, float(base), 473977420 + 1000 * i + base, 85455940 + i, 20.0 + i)
-            for i in range(n)]
-
-
-def same_items(a, b):
-    if a is None or b is None or len(a) != len(b):
-        return False
-    for x, y in zip(a, b):
-        for u, v in zip(x, y):
-            if not (u == v or (isinstance(u, float) and math.isclose(u, v, rel_tol=1e-6, abs_tol=1e-6))):
-                return False
-    return True
 
 
 # --- the lossy link ------------------------------------------------------------------

@@ -1,0 +1,113 @@
+"""Frames held back across transfers: MISSION_ITEM(_INT) names no upload, so a copy of an
+earlier upload's item (or MISSION_COUNT) that a link held back must not be taken into
+the next upload. The vehicle tells them by the sender's packet sequence number
+(mission_upload.py); these tests send such frames by hand, then run the fault test's
+lossy link (lossy_world.py) on a simulated clock for many rounds, where an accepted
+upload must be stored exactly, and any other outcome leave the old plan or the new."""
+import pytest
+
+from lossy_world import World, items_for, same_items
+from mission_rig import Rig
+
+ACCEPTED = 0
+
+
+def frame(rig, name, *args, seq):
+    mav = rig.mav(255, 190)
+    mav.seq = seq & 0xFF
+    return bytearray(getattr(mav, name + "_encode")(*args).pack(mav))
+
+
+def item_frame(rig, seq, item, pseq):
+    f, command, p1, p2, p3, p4, x, y, z = item
+    return frame(rig, "mission_item_int", 1, 1, seq, f, command, 0, 1, p1, p2, p3, p4, x, y, z, 0, seq=pseq)
+
+
+def serve(rig, items, pseq, held=()):
+    """Answer the vehicle's requests with fresh frames numbered from pseq -> the ACK type."""
+    for _ in range(1000):
+        rig.run(5)
+        got = rig.take(["MISSION_REQUEST_INT", "MISSION_ACK"])
+        for m in got:
+            if m.get_type() == "MISSION_ACK":
+                return m.type, pseq
+        for m in got:
+            pseq += 1
+            rig.b.send_raw(item_frame(rig, m.seq, items[m.seq], pseq))
+    return None, pseq
+
+
+def stored(rig):
+    return World.stored(type("W", (), {"r": rig})())
+
+
+def test_an_item_sent_before_the_upload_began_is_not_taken(tmp_path):
+    rig = Rig(tmp_path)
+    old, new = items_for(101, 4), items_for(201, 4)
+    rig.b.send_raw(frame(rig, "mission_count", 1, 1, 4, 0, seq=10))
+    result, _ = serve(rig, old, 10)
+    assert result == ACCEPTED
+    late = item_frame(rig, 2, old[2], 14)  # a copy of the old item 2 the link held back
+    rig.b.send_raw(frame(rig, "mission_count", 1, 1, 4, 0, seq=40))
+    rig.run(2)
+    rig.b.send_raw(late)  # arrives in the new upload, which has asked for item 2
+    rig.run(2)
+    result, _ = serve(rig, new, 40)
+    assert result == ACCEPTED
+    assert same_items(stored(rig), new)
+
+
+def test_a_count_sent_before_the_upload_began_does_not_restart_it(tmp_path):
+    rig = Rig(tmp_path)
+    new = items_for(301, 6)
+    stale_count = frame(rig, "mission_count", 1, 1, 3, 0, seq=200)
+    rig.b.send_raw(frame(rig, "mission_count", 1, 1, 6, 0, seq=210))
+    rig.run(2)
+    rig.b.send_raw(stale_count)
+    result, _ = serve(rig, new, 210)
+    assert result == ACCEPTED
+    assert same_items(stored(rig), new)  # all six: not cut to the stale count's three
+
+
+def test_packet_numbers_wrap_in_a_long_upload(tmp_path):
+    # 400 items: the ground station's 8-bit numbers wrap once and a half.
+    rig = Rig(tmp_path)
+    items = items_for(7, 400)
+    rig.b.send_raw(frame(rig, "mission_count", 1, 1, 400, 0, seq=250))
+    result, _ = serve(rig, items, 250)
+    assert result == ACCEPTED
+    assert same_items(stored(rig), items)
+
+
+def test_a_ground_station_with_one_fixed_packet_number_still_uploads(tmp_path):
+    rig = Rig(tmp_path)  # the rig's own upload numbers every frame 0
+    items = items_for(9, 12)
+    from mission_gcs import Item
+    as_items = [Item(f, c, 0, 1, p1, p2, p3, p4, x, y, z) for f, c, p1, p2, p3, p4, x, y, z in items]
+    assert rig.upload(as_items) == ACCEPTED
+    assert same_items(stored(rig), items)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_uploads_through_a_reordering_link_never_mix(tmp_path, seed):
+    w = World(tmp_path, seed=seed, rate=0.3, stall=0.001)
+    old = w.stored()
+    outcomes = []
+    for round_ in range(25):
+        new = items_for(100 * round_ + 1, 3 + 2 * (round_ % 5))
+        outcome = w.upload(new)
+        for _ in range(w.rng.choice((0, 300, 6000))):  # another station reads, or not
+            w.step()
+        now = w.stored()
+        outcomes.append(outcome)
+        if outcome == "accepted":
+            assert same_items(now, new), (round_, now)
+        elif outcome == "refused":
+            assert same_items(now, old), (round_, now)
+        else:
+            assert same_items(now, new) or same_items(now, old), (round_, now)
+        old = now
+        got = w.download()
+        if got is not None:
+            assert same_items(got, now), (round_, got)
+    assert outcomes.count("accepted") > 15, outcomes
