@@ -138,3 +138,30 @@ def test_verify_hook_set_by_a_frame_applies_to_the_next_in_the_same_chunk():
     more = bytearray(hb(5, 1, 1) + hb(6, 1, 1))
     p.feed(more, len(more))
     assert got[-2:] == [5, 6] and p.frames == 6
+
+
+def test_counters_wrap_below_2_30():
+    """On a 32-bit board an int of 2^30 or more is a heap object: the counters wrap at
+    2^29 (COUNT_WRAP), and differences taken modulo that are the counts. (The emulated
+    boards run the wire path under heap_lock from just below the wrap: test_mcu.py.)"""
+    from mavstack.parser import COUNT_WRAP
+
+    stream, want = two_sources(4)
+    ep = Endpoint(COMMON)
+    t = MemoryTransport()
+    link = ep.add_link(t)
+    start = COUNT_WRAP - 3
+    for name in want:
+        setattr(link.rx, name, start)
+    link.tx.frames = start
+    t.rx += stream
+    while t.rx:
+        ep.poll(0)
+    for name in want:
+        value = getattr(link.rx, name)
+        assert 0 <= value <= COUNT_WRAP and (value < start or want[name] < 3), name  # wrapped
+        assert (value - start) & COUNT_WRAP == want[name], name
+    for _ in range(5):
+        link.tx.begin()
+        link.send(0)  # HEARTBEAT's payload of zeros
+    assert link.tx.frames == 1

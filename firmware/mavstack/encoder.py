@@ -85,7 +85,7 @@ class Encoder:
         buf[end] = crc & 0xFF
         buf[end + 1] = crc >> 8
         self.seq = (self.seq + 1) & 0xFF
-        self.frames += 1
+        self.frames = (self.frames + 1) & 0x1FFFFFFF  # as the parser's counters (COUNT_WRAP)
         end += 2
         if self.sign is not None and self.version == 2:
             return end + self.sign(buf, end)

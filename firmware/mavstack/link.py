@@ -48,7 +48,8 @@ from .encoder import Encoder
 
 _RX_CHUNK = const(512)
 _RX_READS_PER_POLL = const(8)  # bounds the time one busy link can take from a poll
-TX_WRAP = const(0x1FFFFFFF)  # tx_bytes wraps here: take differences as (a - b) & TX_WRAP
+TX_WRAP = const(0x1FFFFFFF)  # tx_bytes, tx_held, tx_dropped wrap here (as the parser's
+# counters): take differences as (a - b) & TX_WRAP
 
 RANK_AUTO = const(-1)
 RANK_VITAL = const(0)
@@ -140,7 +141,7 @@ class Link:
             self._unsend()
             return False
         if self.transport.write(self.txbuf, n) != n:
-            self.tx_dropped += 1
+            self.tx_dropped = (self.tx_dropped + 1) & TX_WRAP
             return False
         self.tx_bytes = (self.tx_bytes + n) & TX_WRAP  # a counter that stays a small int
         self._spend(n)
@@ -176,7 +177,7 @@ class Link:
             return True
         if self.credit - n * 1000 >= _FLOOR[rank]:
             return True
-        self.tx_held += 1
+        self.tx_held = (self.tx_held + 1) & TX_WRAP
         return False
 
     def _unsend(self):

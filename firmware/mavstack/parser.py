@@ -26,6 +26,11 @@ SIGNATURE_LEN = const(13)
 IFLAG_SIGNED = const(0x01)
 FRAME_MAX = const(280)  # 10 header + 255 payload + 2 crc + 13 signature
 _SOURCES = const(8)  # senders tracked for sequence-gap loss figures
+# Statistics wrap at 2^29: on a 32-bit board an int of 2^30 or more is a heap object, and
+# a counter past it would allocate on every frame (a day of garbage from a noisy radio,
+# six days of frames at 1 kHz). Compare counts by difference modulo 2^29 (COUNT_WRAP + 1),
+# as link.TX_WRAP.
+COUNT_WRAP = const(0x1FFFFFFF)
 
 
 class Parser:
@@ -118,7 +123,7 @@ class Parser:
                     self.compid = buf[6]
                     r = buf[7]
                 self.msgid = r
-                self.frames += 1
+                self.frames = (self.frames + 1) & COUNT_WRAP
                 self.on_frame(r, self.payload)
             else:
                 return
@@ -132,7 +137,7 @@ class Parser:
         """A gap or a frame a scan call left to Python (r = its answer decoded) -> the
         next pos."""
         if r & 3 == 0:  # no start marker up to r >> 2
-            self.bytes_discarded += (r >> 2) - pos
+            self.bytes_discarded = (self.bytes_discarded + (r >> 2) - pos) & COUNT_WRAP
         else:
             self._deliver()
         return r >> 2
@@ -144,7 +149,7 @@ class Parser:
         cnt = self._cnt
         if cnt == 0:
             k = find_stx(src, pos, end)
-            self.bytes_discarded += k - pos
+            self.bytes_discarded = (self.bytes_discarded + k - pos) & COUNT_WRAP
             if k >= end:
                 return end
             self._rstart = k if src is self._replay else -1
@@ -180,15 +185,15 @@ class Parser:
         plen = buf[1]
         if buf[0] == STX_V2:
             if buf[2] & ~IFLAG_SIGNED:
-                self.bad_frames += 1
+                self.bad_frames = (self.bad_frames + 1) & COUNT_WRAP
                 return False
             msgid = buf[7] | buf[8] << 8 | buf[9] << 16
             info = self.crc_len.get(msgid)
             if info is None:
-                self.unknown_ids += 1
+                self.unknown_ids = (self.unknown_ids + 1) & COUNT_WRAP
                 return False
             if plen == 0 or plen > (info >> 16):
-                self.bad_frames += 1
+                self.bad_frames = (self.bad_frames + 1) & COUNT_WRAP
                 return False
             want = HEADER_V2 + plen + 2
             if buf[2] & IFLAG_SIGNED:
@@ -197,12 +202,12 @@ class Parser:
             msgid = buf[5]
             info = self.crc_len.get(msgid)
             if info is None:
-                self.unknown_ids += 1
+                self.unknown_ids = (self.unknown_ids + 1) & COUNT_WRAP
                 return False
             # At least the base fields; senders built from a newer definition (the
             # MAVLink C library, pymavlink forced to v1) may add extension bytes.
             if plen < (info >> 8) & 0xFF or plen > info >> 16:
-                self.bad_frames += 1
+                self.bad_frames = (self.bad_frames + 1) & COUNT_WRAP
                 return False
             want = HEADER_V1 + plen + 2
         self._plen = plen
@@ -219,7 +224,7 @@ class Parser:
         crc = crc16(buf, 1, end + 1, 0xFFFF)
         buf[end] = wire & 0xFF
         if crc != wire:
-            self.crc_errors += 1
+            self.crc_errors = (self.crc_errors + 1) & COUNT_WRAP
             return False
         return True
 
@@ -252,7 +257,7 @@ class Parser:
         full = self.crc_len[self.msgid] >> 16
         if plen < full:
             zero(buf, start + plen, start + full)
-        self.frames += 1
+        self.frames = (self.frames + 1) & COUNT_WRAP
         self._count_sequence()
         self.on_frame(self.msgid, self.payload)
 
@@ -260,7 +265,7 @@ class Parser:
         # Everything after the start marker may hold the next real frame.
         n = self._cnt
         self._cnt = 0
-        self.bytes_discarded += 1
+        self.bytes_discarded = (self.bytes_discarded + 1) & COUNT_WRAP
         if replaying:
             return self._rstart + 1
         copy(self._replay, self.buf, 1 << 10, n - 1)
@@ -274,7 +279,7 @@ class Parser:
         i = SLOTS
         while i < IDS:
             if buf[i] and buf[i + 1] == self.sysid and buf[i + 2] == self.compid:
-                self.lost += (self.seq - buf[i + 3] - 1) & 0xFF
+                self.lost = (self.lost + ((self.seq - buf[i + 3] - 1) & 0xFF)) & COUNT_WRAP
                 buf[i + 3] = self.seq
                 return
             i += 4

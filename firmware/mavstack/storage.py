@@ -101,3 +101,27 @@ class Storage:
 def checksum(data, crc=0xFFFF):
     """CRC-16 of a bytes-like object, continuing from crc."""
     return crc16(data, 0, len(data), crc)
+
+
+# A small record kept whole in one file, sealed by a CRC-16 in its last two bytes (the
+# signing key, the origin and allowed area): saved by replacing the file, so that power
+# lost mid-write leaves the old record or the new. Either storage (this one or
+# storage_ram.py) takes it; nothing is allocated on a board's heap but by the storage.
+def save_sealed(storage, name, data):
+    """Seal data (a bytearray: its last two bytes take the CRC-16 of the rest) and
+    replace file `name` with it."""
+    n = len(data) - 2
+    crc = crc16(data, 0, n, 0xFFFF)
+    data[n] = crc & 0xFF
+    data[n + 1] = crc >> 8
+    # No `with`: RamFile.__exit__(*exc) would allocate its arguments' tuple.
+    f = storage.open_new(name, n + 2)
+    f.write(data)
+    f.close()
+    storage.commit(name)
+
+
+def sealed(data, size):
+    """data, read back, is a whole record of `size` bytes whose CRC-16 checks."""
+    n = size - 2
+    return len(data) == size and crc16(data, 0, n, 0xFFFF) == data[n] | data[n + 1] << 8

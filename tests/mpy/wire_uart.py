@@ -9,6 +9,9 @@ is a MemoryError):
           delivered frame's id and full-length payload go into a CRC-16 digest
   encode  ENCODE_COUNT frames of six kinds (wire_kinds.py), alternately MAVLink 1 and 2,
           written to the UART for the host to decode with pymavlink
+The locked round starts the parser's and encoders' counters just below their wrap
+(parser.COUNT_WRAP): past 2^30 they would be heap objects on this 32-bit board, and the
+lock would fail on the first count. Its stats are printed as counted from there.
 Prints `parse N digest D stats ...`, `requested B` and `encode N` per round.
 """
 import micropython
@@ -17,7 +20,7 @@ from mavstack.compat import ticks_ms, ticks_diff
 from mavstack.dialects import common
 from mavstack.encoder import Encoder
 from mavstack.kernels import crc16, IMPL
-from mavstack.parser import Parser
+from mavstack.parser import Parser, COUNT_WRAP
 from mavstack.qemu import UartTransport
 from wire_kinds import pack_frame
 
@@ -82,6 +85,9 @@ def run(r):
     encode(r)
 
 
+STATS = ("frames", "crc_errors", "bytes_discarded", "unknown_ids", "bad_frames", "lost")
+
+
 def main(total, count):
     print("kernels", IMPL)
     uart = UartTransport()
@@ -89,6 +95,11 @@ def main(total, count):
     encoders = (Encoder(CRC_LEN, 1), Encoder(CRC_LEN, 2))
     for locked in (False, True):
         r = Round(uart, buf, encoders, total, count)
+        start = COUNT_WRAP - 2 if locked else 0
+        for name in STATS:
+            setattr(r.parser, name, start)
+        for enc in encoders:
+            enc.frames = start
         before = micropython.mem_total()
         if locked:
             micropython.heap_lock()
@@ -101,8 +112,10 @@ def main(total, count):
         print("round", "locked" if locked else "unlocked", "bytes", r.got, "requested", 0 if locked else requested)
         d = r.d
         parser = r.parser
-        print("parse", d.frames, "digest", d.crc, "signed", d.signed, "stats", parser.frames, parser.crc_errors,
-              parser.bytes_discarded, parser.unknown_ids, parser.bad_frames)
+        stats = [(getattr(parser, name) - start) & COUNT_WRAP for name in STATS[:5]]
+        print("parse", d.frames, "digest", d.crc, "signed", d.signed, "stats", *stats)
+        assert all(getattr(parser, name) <= COUNT_WRAP for name in STATS)
+        assert all(0 <= (enc.frames - start) & COUNT_WRAP <= count for enc in encoders)
         print("encode", count)
 
 

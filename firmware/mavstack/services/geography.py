@@ -43,7 +43,8 @@ from struct import pack_into
 
 from ..compat import const
 from ..fields import i32_cmp, f32_is_nan
-from ..kernels import copy, crc16
+from ..kernels import copy
+from ..storage import save_sealed, sealed
 from .mission_items import fix, LOCAL_FRAMES
 from .statustext import WARNING
 
@@ -334,7 +335,7 @@ class Geography:
                 data = f.read()
         except OSError:
             data = b""
-        if len(data) != _FILE_LEN or crc16(data, 0, 38, 0xFFFF) != data[38] | data[39] << 8:
+        if not sealed(data, _FILE_LEN):
             self.ep.statustext(WARNING, b"Origin and allowed area corrupt: cleared")
             return
         copy(self._file, data, 0, _FILE_LEN)
@@ -355,14 +356,7 @@ class Geography:
         storage = getattr(self.ep, "storage", None)
         if storage is None:
             return
-        data = self._file
-        crc = crc16(data, 0, 38, 0xFFFF)
-        data[38] = crc & 0xFF
-        data[39] = crc >> 8
-        f = storage.open_new(_FILE, _FILE_LEN)
-        f.write(data)
-        f.close()
-        storage.commit(_FILE)
+        save_sealed(storage, _FILE, self._file)
 
 
 # Helpers of few locals (a frame state past about 11 words comes from the heap).

@@ -58,9 +58,9 @@ vehicle cannot tell a clock that is ahead from one that is right, and follows th
 Counters: accepted, bad_signature, replayed, future, unsigned (frames dropped per reason).
 """
 from ..compat import const, ticks_add, ticks_diff
-from ..kernels import copy, crc16
+from ..kernels import copy
 from ..parser import HEADER_V2, SIGNATURE_LEN
-from ..storage import checksum
+from ..storage import save_sealed, sealed
 from .sha256 import Signature
 from .statustext import NOTICE, WARNING
 
@@ -322,7 +322,7 @@ class Signing:
                 data = f.read()
         except OSError:
             data = b""
-        if len(data) != _FILE_LEN or checksum(data[:40]) != data[40] | data[41] << 8:
+        if not sealed(data, _FILE_LEN):
             self._warning = b"Signing key corrupt: signing off"
             return
         # The stored promise: nothing above it was accepted or sent before the restart.
@@ -346,14 +346,7 @@ class Signing:
         data = self._file  # key (32), the promise (8, the top two bytes zero), CRC
         copy(data, self.key, 0, 32)
         copy(data, self._promise, 32, 6)
-        crc = crc16(data, 0, 40, 0xFFFF)
-        data[40] = crc & 0xFF
-        data[41] = crc >> 8
-        # No `with`: RamFile.__exit__(*exc) would allocate its arguments' tuple.
-        f = storage.open_new(_FILE, _FILE_LEN)
-        f.write(data)
-        f.close()
-        storage.commit(_FILE)
+        save_sealed(storage, _FILE, data)
 
 
 # --- 48-bit timestamps as 6 little-endian bytes ----------------------------------------

@@ -116,6 +116,8 @@ _TEXT_SHARE = const(4)  # STATUSTEXT may use a quarter of the slowest link
 _GCS_NEVER = const(0)  # no GCS heartbeat yet on this link (the tables start zeroed)
 _GCS_PRESENT = const(1)
 _GCS_LOST = const(2)
+_COUNT_WRAP = const(0x1FFFFFFF)  # parser.COUNT_WRAP
+_RESET = const(0x10000000)
 
 
 class Status:
@@ -546,21 +548,23 @@ class Status:
         return store is not None and store.count > 0
 
     def _link_figures(self):
+        # The parser's counters wrap at 2^29 (parser.COUNT_WRAP): sums and differences
+        # are taken modulo that, so that none reaches 2^30 (a heap object on a 32-bit board).
         frames = lost = errors = 0
         i = 0
         while i < len(self.ep.links):
             rx = self.ep.links[i].rx
-            frames += rx.frames
-            lost += rx.lost
-            errors += rx.crc_errors + rx.bad_frames
+            frames = (frames + rx.frames) & _COUNT_WRAP
+            lost = (lost + rx.lost) & _COUNT_WRAP
+            errors = _capped(_capped(errors + _capped(rx.crc_errors)) + _capped(rx.bad_frames))
             i += 1
-        self._smooth(frames - self._frames, lost - self._lost)
+        self._smooth((frames - self._frames) & _COUNT_WRAP, (lost - self._lost) & _COUNT_WRAP)
         self._frames = frames
         self._lost = lost
-        self.errors_comm = errors if errors < 0xFFFF else 0xFFFF
+        self.errors_comm = errors
 
     def _smooth(self, df, dl):
-        if df >= 0 and dl >= 0:  # negative after a stats reset: skip that window
+        if df < _RESET and dl < _RESET:  # more than 2^28 in a second: stats were reset, skip
             self._acc_frames += df - (self._acc_frames >> 3)
             self._acc_lost += dl - (self._acc_lost >> 3)
         total = self._acc_frames + self._acc_lost
@@ -681,6 +685,10 @@ class Status:
         pack_into("<iii", buf, off, self.home_lat, self.home_lon, self.home_alt)
         pack_into("<f", buf, off + 24, self._one)
         return link.send(_MSG_HOME_POSITION)
+
+
+def _capped(n):
+    return n if n < 0xFFFF else 0xFFFF
 
 
 def _merge(buf, o, bits):
