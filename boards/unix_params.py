@@ -3,7 +3,7 @@
 One row a parameter: (name, MAV_PARAM_TYPE, default, min, max, flags); see
 mavstack/services/params.py. The table is what a ground station sees of a small
 autopilot: every value can be listed, edited and kept; the simulator acts on the WP_*
-speeds and radius, SIM_YAW_RATE, MIS_TAKEOFF_ALT, RTL_ALT, FS_GCS_ENABLE and FS_HOLD_S
+speeds and radius, SIM_YAW_RATE, MIS_TAKEOFF_ALT, RTL_ALT, DISARM_DELAY, FS_GCS_ENABLE and FS_HOLD_S
 (firmware/sim_pilot.py), the rest are stored and served.
 Integers are INT32, as on PX4: MAVSDK (4.x) lists and sets only INT32 and REAL32
 parameters of a bytewise autopilot; the service itself takes every 8/16/32-bit type.
@@ -49,7 +49,7 @@ PARAMS = (
     ("LAND_SPEED", REAL32, 0.5, 0.2, 5.0),
     ("LAND_SPEED_HIGH", REAL32, 1.5, 0.2, 5.0),
     ("LAND_ALT_LOW", REAL32, 10.0, 1.0, 100.0),
-    ("DISARM_DELAY", INT32, 10, 0, 127),
+    ("DISARM_DELAY", INT32, 10, 0, 127),  # s armed on the ground, idle, before disarming (0: never)
     # battery and failsafes
     ("BATT_MONITOR", INT32, 4, 0, 20, REBOOT),
     ("BATT_CAPACITY", INT32, 5000, 0, 1000000),

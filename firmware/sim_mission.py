@@ -36,6 +36,7 @@ class MissionPilot(Motion):
         self._arrived = 0.0  # seconds spent at the item's position
         self._yaw_target = None
         self._wait = None  # NAV_DELAY: seconds to wait
+        self.touched_down = False  # a LAND item has just put the vehicle on the ground
 
     def step(self, dt):
         """Fly the current item for dt seconds (the vehicle is armed, in AUTO)."""
@@ -82,12 +83,13 @@ class MissionPilot(Motion):
             if not self._go(lat, lon, max(sim.alt, alt), dt, self.radius):
                 return False
             return self._go(lat, lon, alt, dt, 0.5)
-        if cmd == 21:  # LAND, at the item's position or here
+        if cmd == 21:  # LAND, at the item's position or here; on the ground the pilot disarms
             lat, lon, alt = self._position(item)
             if not self._go(lat, lon, sim.alt, dt, self.radius):
                 return False
             ground = self.home()[2] if math.isnan(item.z) else alt
-            return self._go(lat, lon, ground, dt, 0.2)
+            self.touched_down = self._go(lat, lon, ground, dt, 0.2)
+            return self.touched_down
         if cmd == 22:  # TAKEOFF, straight up
             return self._go(sim.lat, sim.lon, self._position(item)[2], dt, 0.5)
         if cmd == 112:  # CONDITION_DELAY

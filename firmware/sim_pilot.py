@@ -11,10 +11,12 @@ implies a mode have the same effect):
   RTL       up to RTL_ALT above home (or stays higher), home, down, disarms
   LAND      down where it is (or at NAV_LAND's position), disarms
   AUTO      flies the mission (sim_mission.py); at its end it holds (LOITER), or, landed
-            by it, disarms
+            by it (a LAND item, last or not), disarms
   STABILIZE, ALT_HOLD, POSITION, OFFBOARD   the pilot's demands (sim_inputs.py); without
             them the vehicle holds
 Nothing leaves the ground disarmed; a vehicle disarmed in the air (a forced disarm) falls.
+Armed on the ground with nothing to do for DISARM_DELAY seconds, it disarms (ArduPilot's
+rule; 0: never).
 
 Commands: NAV_TAKEOFF and NAV_LAND answer IN_PROGRESS (again every half second) and then
 ACCEPTED at the altitude or on touchdown, FAILED if something else happens first; the
@@ -65,6 +67,7 @@ class FlightPilot(FlightCommands):
         self.fs_mode = None  # the mode flown when the input was lost
         self.paused_mode = None  # DO_PAUSE_CONTINUE: (mode, hold_at, speed, yaw) to continue with
         self.landed = ON_GROUND
+        self._idle_s = 0.0  # seconds armed on the ground with nothing to do
         self._airborne = None
         self._asked = False  # a ground station's mode request was accepted since the last step
         self._setpoint = False  # a position target arrived (flown in GUIDED, as ArduPilot does)
@@ -128,6 +131,7 @@ class FlightPilot(FlightCommands):
             self._fly_hold(dt)
         self._update_landed()
         self._report_progress(dt)
+        self._idle_disarm(dt)
 
     def _set_mode(self, name):
         """The vehicle's own mode change (a command, a failsafe, a takeoff done)."""
@@ -276,6 +280,22 @@ class FlightPilot(FlightCommands):
         if m._go(lat, lon, m.ground(), dt, _GROUND_M) or self.sim.alt - m.ground() <= _GROUND_M:
             self._touchdown()
 
+    def _idle_disarm(self, dt):
+        # DISARM_DELAY, as ArduPilot's (PX4: COM_DISARM_PRFLT): armed on the ground, not
+        # taking off and with nothing under way, the motors stop after that many seconds
+        # (0: never). The pilot's throttle up, a takeoff or a mission start lift it first.
+        status = self.status
+        if (status is None or not status.armed or self.landed != ON_GROUND or self.pending is not None
+                or self.mode == "TAKEOFF"):
+            self._idle_s = 0.0
+            return
+        self._idle_s += dt
+        delay = self.mission.setting(None, "DISARM_DELAY", 10.0)
+        if 0 < delay <= self._idle_s:
+            self._idle_s = 0.0
+            status.arm(False, True)
+            self.ep.statustext(INFO, "Disarmed: %d s on the ground, idle" % delay)
+
     def _touchdown(self):
         sim = self.sim
         sim.alt = self.mission.ground()
@@ -308,7 +328,10 @@ class FlightPilot(FlightCommands):
             return
         before = runner.state
         self.mission.step(dt)
-        if runner.state == 5 and before != 5:  # COMPLETE
+        if self.mission.touched_down:  # a LAND item, last or not: down and disarmed, as
+            self.mission.touched_down = False  # ArduPilot and PX4 do (the mission stops)
+            self._touchdown()
+        elif runner.state == 5 and before != 5:  # COMPLETE
             if self.sim.alt - self.mission.ground() <= _GROUND_M:
                 self._touchdown()
             else:

@@ -485,3 +485,46 @@ def test_loiter_time_and_turns_in_a_mission(vehicle):
     # Item 2 ends no sooner than the flight to it (450 m) and its turn (2 pi 10 m) after item 1.
     assert at[2] - at[1] >= 1.5
     v.check_alive()
+
+
+def test_idle_on_the_ground_disarms_after_disarm_delay(vehicle):
+    """ArduPilot's DISARM_DELAY: armed on the ground with nothing to do, the vehicle
+    disarms after that many seconds; 0 never. A takeoff in time keeps it armed."""
+    v, m = fly_vehicle(vehicle)
+    m.mav.param_set_send(1, 1, b"DISARM_DELAY", 2, 9)  # REAL32 for an INT32: taken as a cast
+    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "DISARM_DELAY") is not None
+    armed_at = time.time()
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    assert gcs_tools.statustext(m, "Disarmed: 2 s on the ground, idle", timeout=10) is not None
+    assert 1.5 < time.time() - armed_at < 8
+    hb = heartbeat(m, lambda h: not h.base_mode & ARMED)
+    assert hb.system_status == STANDBY
+    takeoff(m, 5.0)  # armed and straight up: no idle disarm on the way
+    time.sleep(3)
+    assert heartbeat(m).base_mode & ARMED
+    m.mav.param_set_send(1, 1, b"DISARM_DELAY", 0, 9)
+    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "DISARM_DELAY" and p.param_value == 0)
+    set_mode(m, LAND)
+    assert heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=20) is not None  # landed: disarmed
+    set_mode(m, GUIDED)  # (not armed in LAND)
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    time.sleep(3)
+    assert heartbeat(m).base_mode & ARMED  # 0: stays armed
+    v.check_alive()
+
+
+def test_a_land_item_mid_mission_lands_and_disarms(vehicle):
+    v, m = fly_vehicle(vehicle)
+    plan = MISSION + [Item(3, 22, 0, 1, 0, 0, 0, float("nan"), 0, 0, 10.0)]  # a takeoff after the LAND
+    assert MissionClient(m).upload(plan) == 0
+    assert gcs_tools.run(m, 400, 1) == ACCEPTED
+    assert gcs_tools.run(m, 300, 0, 0) == ACCEPTED
+    assert gcs_tools.statustext(m, "Landed: disarmed", timeout=40) is not None
+    hb = heartbeat(m, lambda h: not h.base_mode & ARMED)
+    assert hb is not None and hb.system_status == STANDBY
+    time.sleep(1)
+    pos = position(m)
+    assert abs(pos.relative_alt) < 200  # it stays down: no takeoff disarmed
+    cur = gcs_tools.listen(m, "MISSION_CURRENT", 5)
+    assert cur.seq == 4  # the mission stopped after the LAND
+    v.check_alive()
