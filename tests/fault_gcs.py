@@ -4,6 +4,7 @@ for, and each exchange says what it believes happened, so the test can hold the
 vehicle's stored state against it (correct, or cleanly cancelled, never corrupt).
 
     g = Gcs(connection)                 a pymavlink connection, heartbeat not needed
+    g = Gcs(connection, clock=fn)       ... on another clock (seconds): lossy_world.py's
     g.param_list() -> {name: value} or None
     g.upload(items) -> "accepted" | "refused" | "unsure"
     g.download() -> [item tuples] or None
@@ -16,15 +17,16 @@ MISSION_ACK_ACCEPTED = 0
 
 
 class Gcs:
-    def __init__(self, m, tries=8, wait=0.6):
+    def __init__(self, m, tries=8, wait=0.6, clock=time.time):
         self.m = m
+        self.clock = clock
         self.tries = tries
         self.wait = wait
 
     def recv(self, types, cond=None, timeout=1.0):
-        deadline = time.time() + timeout
+        deadline = self.clock() + timeout
         while True:
-            left = deadline - time.time()
+            left = deadline - self.clock()
             if left <= 0:
                 return None
             msg = self.m.recv_match(type=list(types), blocking=True, timeout=min(left, 0.2))

@@ -96,10 +96,30 @@ def test_gap_sizes():
     ep = Endpoint(COMMON)
     t = MemoryTransport()
     link = ep.add_link(t)
-    for seq in (5, 6, 9, 255, 0, 1, 100):  # gaps: 2, 245, 0, 0, 98
+    for seq in (5, 6, 9, 190, 255, 0, 1, 100):  # gaps: 2, 180, 64, 0, 0, 98
         t.rx += hb(seq, 1, 1)
     ep.poll(0)
-    assert link.rx.frames == 7 and link.rx.lost == 2 + 245 + 98
+    assert link.rx.frames == 8 and link.rx.lost == 2 + 180 + 64 + 98
+
+
+def test_late_frames_are_marked_not_counted_lost():
+    """A frame numbered up to 64 before the newest one from its sender (held back by the
+    link) is delivered and marked late (late_at == frames while it is handled); it
+    counts no loss and leaves the sender's newest number. A repeated number (a duplicate,
+    or a sender that numbers nothing) is neither late nor a loss."""
+    ep = Endpoint(COMMON)
+    t = MemoryTransport()
+    link = ep.add_link(t)
+    seen = []
+    ep.on(0, lambda lk, p: seen.append((lk.rx.seq, lk.rx.late_at == lk.rx.frames)))
+    for seq in (10, 11, 12, 13, 11, 14, 14, 200, 201, 150, 202, 203):
+        t.rx += hb(seq, 1, 1)
+    t.rx += hb(7, 1, 2)  # another sender: its own numbers
+    while t.rx:
+        ep.poll(0)
+    assert seen == [(10, False), (11, False), (12, False), (13, False), (11, True), (14, False), (14, False),
+                    (200, False), (201, False), (150, True), (202, False), (203, False), (7, False)]
+    assert link.rx.lost == 185  # 14 -> 200 only
 
 
 def test_verify_hook_set_by_a_frame_applies_to_the_next_in_the_same_chunk():

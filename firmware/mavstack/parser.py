@@ -31,6 +31,11 @@ _SOURCES = const(8)  # senders tracked for sequence-gap loss figures
 # six days of frames at 1 kHz). Compare counts by difference modulo 2^29 (COUNT_WRAP + 1),
 # as link.TX_WRAP.
 COUNT_WRAP = const(0x1FFFFFFF)
+# A frame numbered up to this many before the newest one from its sender is late (held
+# back by the link, or reordered), not a jump ahead over some 200 lost frames. (After an
+# outage that lost 192 to 254 frames in a row, or a sender's restart from 0, its next
+# frames read as late until its numbers pass the old ones: at most this many.)
+_LATE_WINDOW = const(64)
 
 
 class Parser:
@@ -80,6 +85,10 @@ class Parser:
         self.unknown_ids = 0
         self.bad_frames = 0  # impossible length or unknown incompat flags
         self.lost = 0
+        # frames when the frame last delivered late came (see _LATE_WINDOW): the frame in
+        # hand is late when late_at == frames. Services that must not take an old frame
+        # for a new one (a mission upload's items) ask.
+        self.late_at = -1
         self._src_next = 0  # the sender slot a new sender takes
 
     def feed(self, data, n=-1):
@@ -279,8 +288,7 @@ class Parser:
         i = SLOTS
         while i < IDS:
             if buf[i] and buf[i + 1] == self.sysid and buf[i + 2] == self.compid:
-                self.lost = (self.lost + ((self.seq - buf[i + 3] - 1) & 0xFF)) & COUNT_WRAP
-                buf[i + 3] = self.seq
+                self._gap(i)
                 return
             i += 4
         i = SLOTS + 4 * self._src_next
@@ -290,6 +298,20 @@ class Parser:
         buf[i + 2] = self.compid
         buf[i + 3] = self.seq
 
+    def _gap(self, i):
+        # A late frame is marked (late_at) and leaves the sender's newest number as it
+        # was; a repeated number (a duplicate, or a sender that numbers nothing) is no loss.
+        buf = self.buf
+        gap = (self.seq - buf[i + 3] - 1) & 0xFF
+        if gap == 255:
+            return
+        if gap >= 256 - _LATE_WINDOW:
+            self.late_at = self.frames
+            return
+        self.lost = (self.lost + gap) & COUNT_WRAP
+        buf[i + 3] = self.seq
+
     def reset_stats(self):
         self.frames = self.crc_errors = self.bytes_discarded = 0
         self.unknown_ids = self.bad_frames = self.lost = 0
+        self.late_at = -1

@@ -14,6 +14,12 @@ from mavstack.dialects.layout import message
 from mavstack.kernels import crc16, crc_accumulate
 
 DIALECT = common
+# The rig's well-behaved ground station (rig.py's exchanges). Fuzz frames never speak as
+# it: one that did, numbered ahead of it, would make its next frames read as late ones
+# (parser.late_at), and a mission upload ignores late items, as it should a copy the
+# link held back. (Unsigned MAVLink cannot tell a forger from the real station; signed,
+# the forger's frames are dropped before they are counted.)
+EXCHANGE_GCS = (250, 191)
 
 
 class Layout:
@@ -131,6 +137,8 @@ class Structured:
         version = 1 if msgid < 256 and rng.random() < 0.2 and key is None else 2
         sysid = rng.choice((255, 255, 254, 1, 2, rng.randrange(256)))
         compid = rng.choice((190, 0, 1, rng.randrange(256)))
+        if (sysid, compid) == EXCHANGE_GCS:
+            compid = 190
         return encode(msgid, self.payload(rng, msgid, foreign), sysid, compid, seq, version, key,
                       rng.randrange(3) if key is not None else 0, stamp)
 

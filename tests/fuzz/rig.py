@@ -26,8 +26,8 @@ from pymavlink.dialects.v20 import common as mavlink2  # noqa: E402
 from fuzz import frames  # noqa: E402
 
 SERVICES = ("signing", "status", "params", "commands", "missions", "streams")
-GCS = (255, 190)
-LINK_BYTES_PER_S = 5760  # a 57600 baud radio  # the well-behaved ground station of the exchanges
+GCS = frames.EXCHANGE_GCS  # the well-behaved ground station of the exchanges
+LINK_BYTES_PER_S = 5760  # a 57600 baud radio
 
 
 class ExchangeFailed(AssertionError):

@@ -31,14 +31,11 @@ has come for the service's timeout_ms (missions.py), however many requests that 
 
 MISSION_ITEM(_INT) names no transfer: a copy of an earlier upload's item that a link
 held back (a radio's retries, a reordering router) would pass for this upload's item of
-the same seq, and a stale MISSION_COUNT would restart the upload with the old count.
-Every frame carries its sender's packet sequence number, counted up per frame, and
-routers pass it on unchanged: a frame of the uploader's sent before the one that started
-this upload cannot belong to it. The frame that started the upload sets a floor; an
-item (or MISSION_COUNT) whose number is behind it is ignored (a missing item is asked
-again). The floor follows the newest item, at most 64 frames behind it, so the 8-bit
-comparison never wraps however long the upload; a ground station that sends one fixed
-number is taken as it always was.
+the same seq. Every frame carries its sender's packet sequence number, counted up per
+frame (routers pass it on): the parser marks a frame numbered before the newest one its
+sender has sent (parser.late_at), and such an item is ignored here (a missing one is
+asked again); missions.py likewise ignores such a MISSION_COUNT, which would start the
+old upload again.
 
 Nothing here allocates: the window is a bit mask (bit i: item base + i is in) and a
 list of request times made once; times are ticks_ms values (small ints) and their
@@ -92,7 +89,6 @@ class Upload:
         self.heard = 0  # ticks of the last move of base: the timer runs from it too
         self.tries = 0  # expiries since the last new item
         self.current = -1  # the item sent with current=1, -2: keep the current one
-        self.floor = 0  # packet sequence number of the frame that started the upload (see above)
 
     def start(self, link, store, first, keep):
         """Ask for items first .. m.t_end of a plan of m.t_count items (keep: items of the
@@ -101,7 +97,6 @@ class Upload:
             self.m._storage_failed(link, store)
             return
         self.m._start(link, _UPLOAD, store)
-        self.floor = link.rx.seq
         self.first = self.base = self.top = self.cursor = self.m.t_seq = first
         self.mark = first + 1
         self.end = self.m.t_end
@@ -152,8 +147,8 @@ class Upload:
     # --- items --------------------------------------------------------------------
     def item(self, link, p, seq):
         """Item seq from the uploader, of the plan type under upload."""
-        if seq >= self.top or seq < self.first or self.stale(link.rx.seq):
-            return  # not asked for, or sent before this upload: ignored
+        if seq >= self.top or seq < self.first or link.rx.late_at == link.rx.frames:
+            return  # not asked for, or sent before a frame already in (see above): ignored
         if seq < self.base or self.held >> (seq - self.base) & 1:
             # A copy of one already in: late copies must not move the cursor back, but
             # one a peer that serves in order sent when asked does (it stands there).
@@ -164,13 +159,6 @@ class Upload:
         self.cursor = seq + 1
         if self._take(link, p, seq):
             self._got(seq, self.m.ep.now)
-
-    def stale(self, pseq):
-        """A frame of the uploader's numbered pseq was sent before this upload began."""
-        d = (pseq - self.floor) & 0xFF
-        if d > 64 and d < 128:
-            self.floor = (pseq - 64) & 0xFF
-        return d >= 128
 
     def _take(self, link, p, seq):
         """Check and stage item seq -> True; else the upload ends with the error."""

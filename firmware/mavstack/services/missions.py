@@ -331,13 +331,15 @@ class Missions:
             self.upload.start(link, store, 0, 0)
 
     def _late_count(self, link, p, count):
-        # Any count the uploader sent before the one that started this upload (held back
-        # by the link: see mission_upload), or a copy of that one once items are in.
+        # Sent before a frame its sender has sent since (held back by the link; see
+        # mission_upload.py), or a copy of the count that started this upload once
+        # items are in: not a new upload.
+        if link.rx.late_at == link.rx.frames:
+            return True
         up = self.upload
-        return (self.state == _UPLOAD and self._is_peer(link)
-                and (up.stale(link.rx.seq) or up.first == 0 and count == self.t_count
-                     and (up.base > 0 or up.held != 0)
-                     and (p[4] if self.has_type else 0) == self.t_store.mission_type))
+        return (self.state == _UPLOAD and self._is_peer(link) and up.first == 0
+                and count == self.t_count and (up.base > 0 or up.held != 0)
+                and (p[4] if self.has_type else 0) == self.t_store.mission_type)
 
     def _on_item(self, link, p):
         # MISSION_ITEM_INT and the seed's MISSION_ITEM share their layout but for x and y.
