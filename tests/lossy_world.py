@@ -7,7 +7,7 @@ upload held back into the next) come up in every run.
 
     w = World(tmp_path, seed=1, rate=0.3, stall=0.001, hold_ms=1500)
     w.gcs.upload(items), w.gcs.download()     fault_gcs.Gcs, on the simulated clock
-    w.stored() -> the plan in force, read from the store
+    w.stored() -> the plan in force, read from the store (plan_in_force(rig))
     w.step()    one simulated ms
 Items are (frame, command, p1, p2, p3, p4, x, y, z), as fault_gcs's.
 """
@@ -106,13 +106,17 @@ class World:
                 return None
             self.step()
 
-    # --- what the vehicle holds ---------------------------------------------------------
     def stored(self):
-        store = self.r.missions.stores[0]
-        rec = bytearray(32)
-        out = []
-        for seq in range(store.count):
-            assert store.read(seq, rec)
-            p1, p2, p3, p4, x, y, z, command, frame = struct.unpack_from("<ffffiifHB", rec)
-            out.append((frame, command, p1, p2, p3, p4, x, y, z))
-        return out
+        return plan_in_force(self.r)
+
+
+def plan_in_force(rig):
+    """The mission a Rig's vehicle holds, read from its store, as item tuples."""
+    store = rig.missions.stores[0]
+    rec = bytearray(32)
+    out = []
+    for seq in range(store.count):
+        assert store.read(seq, rec)
+        p1, p2, p3, p4, x, y, z, command, frame = struct.unpack_from("<ffffiifHB", rec)
+        out.append((frame, command, p1, p2, p3, p4, x, y, z))
+    return out

@@ -7,7 +7,7 @@ where an accepted upload must be stored exactly, and any other outcome leave the
 plan or the new."""
 import pytest
 
-from lossy_world import World, items_for, same_items
+from lossy_world import World, items_for, plan_in_force, same_items
 from mission_rig import Rig
 
 ACCEPTED = 0
@@ -38,10 +38,6 @@ def serve(rig, items, pseq, held=()):
     return None, pseq
 
 
-def stored(rig):
-    return World.stored(type("W", (), {"r": rig})())
-
-
 def test_an_item_sent_before_the_upload_began_is_not_taken(tmp_path):
     rig = Rig(tmp_path)
     old, new = items_for(101, 4), items_for(201, 4)
@@ -55,7 +51,7 @@ def test_an_item_sent_before_the_upload_began_is_not_taken(tmp_path):
     rig.run(2)
     result, _ = serve(rig, new, 40)
     assert result == ACCEPTED
-    assert same_items(stored(rig), new)
+    assert same_items(plan_in_force(rig), new)
 
 
 def test_a_count_sent_before_the_upload_began_does_not_restart_it(tmp_path):
@@ -67,7 +63,7 @@ def test_a_count_sent_before_the_upload_began_does_not_restart_it(tmp_path):
     rig.b.send_raw(stale_count)
     result, _ = serve(rig, new, 210)
     assert result == ACCEPTED
-    assert same_items(stored(rig), new)  # all six: not cut to the stale count's three
+    assert same_items(plan_in_force(rig), new)  # all six: not cut to the stale count's three
 
 
 def test_packet_numbers_wrap_in_a_long_upload(tmp_path):
@@ -77,7 +73,7 @@ def test_packet_numbers_wrap_in_a_long_upload(tmp_path):
     rig.b.send_raw(frame(rig, "mission_count", 1, 1, 400, 0, seq=250))
     result, _ = serve(rig, items, 250)
     assert result == ACCEPTED
-    assert same_items(stored(rig), items)
+    assert same_items(plan_in_force(rig), items)
 
 
 def test_a_ground_station_with_one_fixed_packet_number_still_uploads(tmp_path):
@@ -86,7 +82,7 @@ def test_a_ground_station_with_one_fixed_packet_number_still_uploads(tmp_path):
     from mission_gcs import Item
     as_items = [Item(f, c, 0, 1, p1, p2, p3, p4, x, y, z) for f, c, p1, p2, p3, p4, x, y, z in items]
     assert rig.upload(as_items) == ACCEPTED
-    assert same_items(stored(rig), items)
+    assert same_items(plan_in_force(rig), items)
 
 
 @pytest.mark.parametrize("seed", range(12))
