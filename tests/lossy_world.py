@@ -20,6 +20,7 @@ from fault_gcs import Gcs
 from mission_rig import Rig
 from pymavlink.dialects.v20 import common as mavlink2
 
+_MISSION_ITEM_INT = 73
 _TO_GCS = ("MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK", "MISSION_COUNT", "MISSION_ITEM_INT")
 
 
@@ -43,8 +44,11 @@ class World:
         self.rng = random.Random(seed)
         self.r = Rig(tmp_path, name="lossy%d" % seed)
         self.rate = rate
-        self.delay_ms = delay_ms  # the most a frame is held back, toward the ground station
-        self.hold_ms = delay_ms if hold_ms is None else hold_ms  # ... toward the vehicle
+        self.delay_ms = delay_ms  # the most a frame is held back
+        # ... a mission item toward the vehicle (long: into the next upload). Nothing
+        # tells a MISSION_COUNT held back past the end of its transfer from a restarted
+        # ground station's first one (mission_upload.py): those keep to delay_ms.
+        self.hold_ms = delay_ms if hold_ms is None else hold_ms
         self.stall = stall  # chance per ms that the vehicle stops for 0.1 .. 3 s
         self.now = 0  # ms
         self.n = 0
@@ -75,7 +79,8 @@ class World:
 
     def write(self, frame):
         """The ground station's pymavlink sends here."""
-        self._put(self.to_vehicle, bytes(frame), self.hold_ms)
+        frame = bytes(frame)
+        self._put(self.to_vehicle, frame, self.hold_ms if frame[7] == _MISSION_ITEM_INT else self.delay_ms)
 
     def step(self):
         """One ms: frames due reach the vehicle (unless it is stalled), it runs, and what

@@ -32,10 +32,13 @@ has come for the service's timeout_ms (missions.py), however many requests that 
 MISSION_ITEM(_INT) names no transfer: a copy of an earlier upload's item that a link
 held back (a radio's retries, a reordering router) would pass for this upload's item of
 the same seq. Every frame carries its sender's packet sequence number, counted up per
-frame (routers pass it on): the parser marks a frame numbered before the newest one its
-sender has sent (parser.late_at), and such an item is ignored here (a missing one is
-asked again); missions.py likewise ignores such a MISSION_COUNT, which would start the
-old upload again.
+frame (routers pass it on). An item is ignored (and, if missing, asked for again) when
+it is both late, numbered before the newest frame its sender has sent (parser.late_at),
+and numbered before the frame that started this upload: sent before the upload began.
+Late alone is not enough: a ground station started again numbers from 0, and all its
+frames read as late until its numbers pass its old ones (mavctl is a new process each
+run). missions.py likewise ignores such a MISSION_COUNT during the upload. Between
+transfers nothing tells a held-back MISSION_COUNT from a restarted station's first one.
 
 Nothing here allocates: the window is a bit mask (bit i: item base + i is in) and a
 list of request times made once; times are ticks_ms values (small ints) and their
@@ -89,6 +92,7 @@ class Upload:
         self.heard = 0  # ticks of the last move of base: the timer runs from it too
         self.tries = 0  # expiries since the last new item
         self.current = -1  # the item sent with current=1, -2: keep the current one
+        self.origin = 0  # packet sequence number of the frame that started the upload
 
     def start(self, link, store, first, keep):
         """Ask for items first .. m.t_end of a plan of m.t_count items (keep: items of the
@@ -97,6 +101,7 @@ class Upload:
             self.m._storage_failed(link, store)
             return
         self.m._start(link, _UPLOAD, store)
+        self.origin = link.rx.seq
         self.first = self.base = self.top = self.cursor = self.m.t_seq = first
         self.mark = first + 1
         self.end = self.m.t_end
@@ -147,8 +152,8 @@ class Upload:
     # --- items --------------------------------------------------------------------
     def item(self, link, p, seq):
         """Item seq from the uploader, of the plan type under upload."""
-        if seq >= self.top or seq < self.first or link.rx.late_at == link.rx.frames:
-            return  # not asked for, or sent before a frame already in (see above): ignored
+        if seq >= self.top or seq < self.first or sent_before(link.rx, self.origin):
+            return  # not asked for, or sent before this upload began (see above): ignored
         if seq < self.base or self.held >> (seq - self.base) & 1:
             # A copy of one already in: late copies must not move the cursor back, but
             # one a peer that serves in order sent when asked does (it stands there).
@@ -313,3 +318,8 @@ def _stage(m, p, seq, is_int):
         return m._unsaved()
     return result
 
+
+def sent_before(rx, origin):
+    """The frame in hand (rx: its link's parser) was sent before the frame numbered
+    origin that started the upload (see above)."""
+    return rx.late_at == rx.frames and (rx.seq - origin) & 0xFF >= 128

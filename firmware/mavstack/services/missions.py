@@ -58,7 +58,7 @@ from ..fields import u16
 from ..kernels import copy
 from .mission_items import LOCAL_FRAMES, unfix
 from .mission_store import MissionStore, RECORD_SIZE
-from .mission_upload import Upload
+from .mission_upload import Upload, sent_before
 from .statustext import ERROR as _SEVERITY_ERROR
 
 # Loading this module from a .mpy leaves the loader's garbage between the code it
@@ -331,15 +331,15 @@ class Missions:
             self.upload.start(link, store, 0, 0)
 
     def _late_count(self, link, p, count):
-        # Sent before a frame its sender has sent since (held back by the link; see
-        # mission_upload.py), or a copy of the count that started this upload once
+        # During its upload, a count the uploader sent before the one that started it
+        # (held back by the link: see mission_upload.py), or a copy of that one once
         # items are in: not a new upload.
-        if link.rx.late_at == link.rx.frames:
-            return True
         up = self.upload
-        return (self.state == _UPLOAD and self._is_peer(link) and up.first == 0
-                and count == self.t_count and (up.base > 0 or up.held != 0)
-                and (p[4] if self.has_type else 0) == self.t_store.mission_type)
+        if self.state != _UPLOAD or not self._is_peer(link):
+            return False
+        return sent_before(link.rx, up.origin) or (
+            up.first == 0 and count == self.t_count and (up.base > 0 or up.held != 0)
+            and (p[4] if self.has_type else 0) == self.t_store.mission_type)
 
     def _on_item(self, link, p):
         # MISSION_ITEM_INT and the seed's MISSION_ITEM share their layout but for x and y.
