@@ -39,6 +39,16 @@ def same_items(a, b):
     return True
 
 
+def outcome_holds(outcome, now, new, old):
+    """What fault_gcs.Gcs.upload's outcome says the vehicle now holds: "accepted" the new
+    plan, "refused" the old one, "unsure" one or the other, never a mix."""
+    if outcome == "accepted":
+        return same_items(now, new)
+    if outcome == "refused":
+        return same_items(now, old)
+    return same_items(now, new) or same_items(now, old)
+
+
 class World:
     def __init__(self, tmp_path, seed, rate=0.3, delay_ms=20, stall=0.0, hold_ms=None):
         self.rng = random.Random(seed)
