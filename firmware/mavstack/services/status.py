@@ -59,6 +59,7 @@ from ..endpoint import REBOOT, SHUTDOWN
 from ..fields import u32
 from ..kernels import copy
 from ..link import RANK_VITAL, RANK_OTHER, RANK_AUTO
+from ..parser import COUNT_WRAP
 from .statustext import TextQueue, CRITICAL, NOTICE, WARNING
 from .operator import Operator, on_change_operator_control
 from . import vehicle_commands
@@ -116,8 +117,7 @@ _TEXT_SHARE = const(4)  # STATUSTEXT may use a quarter of the slowest link
 _GCS_NEVER = const(0)  # no GCS heartbeat yet on this link (the tables start zeroed)
 _GCS_PRESENT = const(1)
 _GCS_LOST = const(2)
-_COUNT_WRAP = const(0x1FFFFFFF)  # parser.COUNT_WRAP
-_RESET = const(0x10000000)
+_RESET = const(0x10000000)  # half of the counters' modulus (parser.COUNT_WRAP + 1)
 
 
 class Status:
@@ -554,11 +554,11 @@ class Status:
         i = 0
         while i < len(self.ep.links):
             rx = self.ep.links[i].rx
-            frames = (frames + rx.frames) & _COUNT_WRAP
-            lost = (lost + rx.lost) & _COUNT_WRAP
+            frames = (frames + rx.frames) & COUNT_WRAP
+            lost = (lost + rx.lost) & COUNT_WRAP
             errors = _capped(_capped(errors + _capped(rx.crc_errors)) + _capped(rx.bad_frames))
             i += 1
-        self._smooth((frames - self._frames) & _COUNT_WRAP, (lost - self._lost) & _COUNT_WRAP)
+        self._smooth((frames - self._frames) & COUNT_WRAP, (lost - self._lost) & COUNT_WRAP)
         self._frames = frames
         self._lost = lost
         self.errors_comm = errors
