@@ -63,6 +63,8 @@ class Fuzz:
             return
         v = self.v
         mode = data[0] & 3
+        if mode == 3:  # held against what the earlier batches' bytes have done, all of it
+            v.settle()
         before = self.inv.snapshot(self.storage)
         held = self.inv.state(v)
         dirty = v.params.dirty

@@ -124,6 +124,16 @@ class FuzzVehicle:
                 self.poll()
             o += n
 
+    def settle(self):
+        """Every byte fed so far handled: the link's buffer emptied, and a candidate frame
+        the parser still waits on finished by 300 zero bytes (a longer frame than any),
+        so that what the bytes held (a frame for us inside a spliced candidate, found
+        when it is scanned again) takes effect now, not in the next batch."""
+        self.feed(bytes(300))
+        while self.bench.gcs_end.outbound.count:
+            self.poll()
+        self.poll()
+
     # --- a well-behaved ground station ------------------------------------------------
     def send(self, name, *args):
         msg = getattr(self.dec, name + "_encode")(*args)
