@@ -21,7 +21,7 @@ RAM_BUDGET = 128 * 1024  # an ESP32 with PSRAM (WROVER); a plain WROOM leaves ~1
 
 def transports():
     from machine import UART
-    from mavstack.transport_serial import UartTransport
+    from mavstack.transport.serial import UartTransport
 
     uart = UART(UART_ID, BAUD, tx=UART_TX, rx=UART_RX, txbuf=1024, rxbuf=1024, timeout=0)
     return [UartTransport(uart, BAUD, "uart2")]

@@ -21,7 +21,7 @@ RAM_BUDGET = 128 * 1024  # of the ~190 KB heap MicroPython leaves on the RP2040
 
 def transports():
     from machine import UART, Pin
-    from mavstack.transport_serial import UartTransport
+    from mavstack.transport.serial import UartTransport
 
     uart = UART(UART_ID, BAUD, tx=Pin(UART_TX), rx=Pin(UART_RX), txbuf=1024, rxbuf=1024, timeout=0)
     return [UartTransport(uart, BAUD, "uart0")]

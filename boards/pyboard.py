@@ -19,7 +19,7 @@ RAM_BUDGET = 96 * 1024  # of the ~100 KB heap on the STM32F405
 
 def transports():
     from machine import UART
-    from mavstack.transport_serial import UartTransport
+    from mavstack.transport.serial import UartTransport
 
     uart = UART(UART_ID, BAUD, txbuf=1024, rxbuf=1024, timeout=0)
     return [UartTransport(uart, BAUD, "uart4")]

@@ -8,7 +8,7 @@ SYSID = 1
 COMPID = 1
 MAV_TYPE = 2  # MAV_TYPE_QUADROTOR
 MAV_AUTOPILOT = 0  # MAV_AUTOPILOT_GENERIC
-SERVICES = ("status", "params", "commands", "missions", "inputs", "telemetry_seed", "streams", "ftp",
+SERVICES = ("status", "params", "commands", "missions", "inputs", "seed_telemetry", "streams", "ftp",
             "geography", "servos", "debug", "auth", "calibration", "seed_commands")  # inputs before streams: its slots stream by default
 STORAGE = __file__.rsplit("/", 2)[0] + "/storage"
 LINKS = ("udpout:127.0.0.1:14550",)
@@ -50,8 +50,8 @@ def transports():
 
 
 def application(endpoint):
-    from simulator import Simulator
-    import sim_seed
+    from sim import Simulator
+    from sim import seed as sim_seed
 
     sim = Simulator(endpoint)
     sim_seed.compose(endpoint, sim)  # calibration, video, debug values, state corrections

@@ -22,6 +22,7 @@ Nothing in the table is written by hand. It is read from:
 A row that says "not handled" without a reason makes the generator fail.
 """
 import ast
+import glob
 import io
 import os
 import re
@@ -103,7 +104,7 @@ def handler_name(fn):
 
 
 def owner(fn):
-    """The module (services/NAME.py, or firmware/NAME.py) a handler belongs to."""
+    """The module (services/NAME, services/PACKAGE.NAME, or sim.NAME) a handler belongs to."""
     obj = getattr(fn, "__self__", None)
     if obj is not None and hasattr(obj, "service") and not hasattr(obj, "NAME"):
         obj = obj.service  # a per-message delivery object (services/debug.py)
@@ -114,23 +115,25 @@ def owner(fn):
 def sent_by_sources():
     """{(id, constant name): [service, ...]} for messages a service sends as an answer."""
     sent = {}
-    for fname in sorted(os.listdir(SERVICES_DIR)):
-        if not fname.endswith(".py"):
-            continue
-        with open(os.path.join(SERVICES_DIR, fname), encoding="utf-8") as f:
+    stack = os.path.join(FIRMWARE, "mavstack")
+    for path in sorted(glob.glob(os.path.join(stack, "**", "*.py"), recursive=True)):
+        top = SERVICES_DIR if path.startswith(SERVICES_DIR) else stack  # the core's statustext too
+        rel = os.path.relpath(path, top)[:-3].replace(os.sep, ".")
+        module = rel[: -len(".__init__")] if rel.endswith(".__init__") else rel  # as owner() names it
+        with open(path, encoding="utf-8") as f:
             text = f.read()
         consts = dict(re.findall(r"^(_MSG_\w+) = const\((\d+)\)", text, re.M))
         for name in set(re.findall(r"send(?:_payload)?\((_MSG_\w+)", text)):
             if name in consts:
                 # by name: the constant names the message its service means (ids are shared
                 # between the dialects' different messages)
-                sent.setdefault((int(consts[name]), name[5:]), []).append(fname[:-3])
+                sent.setdefault((int(consts[name]), name[5:]), []).append(module)
     return sent
 
 
 def mission_commands():
     """MAV_CMD ids a mission may hold (services/mission_items.py's rules)."""
-    from mavstack.services import mission_items
+    from mavstack.services.missions import items as mission_items
 
     rules = mission_items._MISSION_RULES
     return {rules[i] | rules[i + 1] << 8 for i in range(0, len(rules), 3)}
@@ -242,7 +245,7 @@ def command_rows(cmds, eps, tests, in_missions, reasons):
             what.append("mission item: accepted, carried out as the runner makes it current")
         if not what:
             what = ["NOT HANDLED"]
-        rows.append((cid, name, "in", "; ".join(what), ", ".join(handlers) or "missions (mission_items)",
+        rows.append((cid, name, "in", "; ".join(what), ", ".join(handlers) or "missions (missions/items.py)",
                      proving_test(name, tests, cmd=True, cid=cid)))
     return rows
 

@@ -12,10 +12,9 @@ import time
 from conftest import FIRMWARE, PYTHON, ROOT
 
 HOST_TOOLS = os.path.join(ROOT, "host_tools")
-MAVCTL = os.path.join(HOST_TOOLS, "mavctl.py")
 if HOST_TOOLS not in sys.path:
     sys.path.insert(0, HOST_TOOLS)
-import mavctl_cli  # noqa: E402
+from mavctl import cli as mavctl_cli  # noqa: E402
 
 SIGNED_BOARD = '''"""The unix vehicle with message signing (a test's board)."""
 from unix import *  # noqa: F401,F403
@@ -41,7 +40,7 @@ def mavctl(link, *args):
 
 def mavctl_cli_run(link, *args, timeout=60, env=None):
     """mavctl as the user runs it: a process; no traceback allowed."""
-    argv = [PYTHON, MAVCTL] + (["--connect", link] if link else []) + [str(a) for a in args]
+    argv = [PYTHON, "-m", "mavctl"] + (["--connect", link] if link else []) + [str(a) for a in args]
     r = subprocess.run(argv, capture_output=True, text=True, timeout=timeout, cwd=ROOT, env=env)
     assert "Traceback" not in r.stderr, r.stderr
     return r
@@ -81,8 +80,8 @@ HOME = (47.397742, 8.545594, 488.0)
 def write_test_plan(path):
     """A .plan: 5 mission items, an inclusion square, an exclusion triangle and circle,
     two rally points."""
-    from mission_files import Item
-    from plan_files import Plan, write_plan
+    from mavctl.mission_file import Item
+    from mavctl.plan_file import Plan, write_plan
 
     def item(seq, command, p1, lat, lon, alt=0.0, frame=3):
         return Item(seq, 0, frame, command, p1, 0.0, 0.0, 0.0, lat, lon, alt, 1)
@@ -112,7 +111,7 @@ class Sim:
     """`mavctl sim` as a process; .device is the pty it printed for the ground station."""
 
     def __init__(self, *args, env=None):
-        self.proc = subprocess.Popen([PYTHON, MAVCTL, "sim"] + [str(a) for a in args], cwd=ROOT,
+        self.proc = subprocess.Popen([PYTHON, "-m", "mavctl", "sim"] + [str(a) for a in args], cwd=ROOT,
                                      stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      env=env)
         self.banner = self.proc.stdout.readline()

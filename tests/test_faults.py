@@ -158,7 +158,7 @@ def _last(out, word):
 
 
 def check_params(storage, out, last):
-    from mavstack.services import param_table
+    from mavstack.services.params import table as param_table
     import unix_params
 
     start = _last(out, "start")
@@ -182,7 +182,7 @@ def check_params(storage, out, last):
 
 
 def check_missions(storage, out, last):
-    from mavstack.services.mission_store import MissionStore, RECORD_SIZE
+    from mavstack.services.missions.store import MissionStore, RECORD_SIZE
     from mavstack.storage import Storage
 
     start = _last(out, "start")

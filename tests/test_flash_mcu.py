@@ -26,14 +26,14 @@ from test_mcu import _gate
 
 sys.path.insert(0, os.path.join(ROOT, "mcu"))
 import firmware  # noqa: E402
-from flash_device import Board  # noqa: E402  (host_tools is on sys.path: mavctl_tools)
+from mavctl.flash_device import Board  # noqa: E402  (host_tools is on sys.path: mavctl_tools)
 
 MAVCTL = os.path.join(ROOT, ".venv", "bin", "mavctl")  # the installed command (make setup)
 EXIT_USAGE, EXIT_NO_PORT, EXIT_NOT_MICROPYTHON, EXIT_MPY_VERSION = 2, 3, 6, 7
 
 
 def flash(*args, timeout=300):
-    cmd = [MAVCTL] if os.path.exists(MAVCTL) else [sys.executable, os.path.join(ROOT, "host_tools", "mavctl.py")]
+    cmd = [MAVCTL] if os.path.exists(MAVCTL) else [sys.executable, "-m", "mavctl"]
     r = subprocess.run(cmd + ["flash"] + [str(a) for a in args], capture_output=True, text=True,
                        timeout=timeout, cwd=ROOT)
     assert "Traceback" not in r.stderr, r.stderr

@@ -17,12 +17,11 @@ import pytest
 
 from conftest import MICROPYTHON, PYTHON, ROOT, free_udp_port, recv, run_mpy
 
-FLASH = os.path.join(ROOT, "host_tools", "flash.py")
 MAVCTL = os.path.join(ROOT, ".venv", "bin", "mavctl")
 STACK = os.path.join(ROOT, "firmware", "mavstack")
 sys.path.insert(0, os.path.join(ROOT, "host_tools"))
-import flash as flash_tool  # noqa: E402
-import mavctl as mavctl_tool  # noqa: E402
+import mavctl.flash_build as flash_tool  # noqa: E402
+from mavctl import cli as mavctl_tool  # noqa: E402
 
 WPL = """QGC WPL 110
 0\t1\t0\t16\t0\t0\t0\t0\t47.397742\t8.545594\t488.0\t1
@@ -40,7 +39,7 @@ def run(cmd, timeout=60, **kw):
 
 
 def flash(*args):
-    r = run([PYTHON, FLASH] + list(args))
+    r = run([PYTHON, "-m", "mavctl.flash_build"] + list(args))
     assert "Traceback" not in r.stderr, r.stderr
     return r
 
@@ -136,7 +135,7 @@ def test_flash_build_tree(tmp_path, board, arch):
     assert (out / "main.py").read_text() == open(os.path.join(ROOT, "firmware", "main.py")).read()
     for f in files:
         if f.endswith(".mpy"):
-            want = arch if f in ("mavstack/bytes_viper.mpy", "mavstack/services/sha256_viper.mpy") else 0
+            want = arch if f in ("mavstack/kernels/bytes_viper.mpy", "mavstack/kernels/sha256_viper.mpy") else 0
             assert mpy_header(out / f) == want, f
 
 
@@ -194,7 +193,7 @@ def test_flash_unix_tree_runs(tmp_path, cut):
     r = run([MICROPYTHON, "-c", "import sys; sys.path.insert(0, %r)\n"
              "import mavstack.kernels as k, mavstack.services.params, board\n"
              "print(k.IMPL, k.__file__)" % str(out)], env=env, cwd=tmp_path)
-    assert r.stdout.split() == ["viper", str(out / "mavstack/kernels.mpy")], r.stdout + r.stderr
+    assert r.stdout.split() == ["viper", str(out / "mavstack/kernels/__init__.mpy")], r.stdout + r.stderr
 
     port = free_udp_port()
     proc = subprocess.Popen([MICROPYTHON, out / "main.py", "--storage", tmp_path / "storage",

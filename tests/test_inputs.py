@@ -186,7 +186,7 @@ def test_seed_setpoints_answered():
 
 class FakeSim:
     def __init__(self, ep):
-        import simulator
+        import sim as simulator
 
         self.ep = ep
         self.lat, self.lon, self.alt = simulator.HOME_LAT, simulator.HOME_LON, simulator.HOME_ALT
@@ -198,7 +198,7 @@ class FakeSim:
 
 
 def test_pilot_manual_control_and_rc_override(bench):
-    from sim_inputs import PilotInputs
+    from sim.inputs import PilotInputs
 
     sim = FakeSim(bench.ep)
     pilot = PilotInputs(sim)
@@ -225,8 +225,8 @@ def test_pilot_manual_control_and_rc_override(bench):
 
 
 def test_pilot_offboard_setpoints(bench):
-    import simulator
-    from sim_inputs import PilotInputs
+    import sim as simulator
+    from sim.inputs import PilotInputs
 
     sim = FakeSim(bench.ep)
     pilot = PilotInputs(sim)
@@ -295,8 +295,8 @@ def inputs_module():
 
 
 def test_milli_reads_floats_as_integers():
-    from mavstack.services.inputs_echo import put_f32_milli
-    from mavstack.services.inputs_record import milli
+    from mavstack.services.inputs.echo import put_f32_milli
+    from mavstack.services.inputs.record import milli
 
     for f in (0.0, -0.0, 1.0, -1.0, 0.0005, -0.0015, 3.14159, 1048.5, -123456.789, 1e-9):
         b = struct.pack("<f", f)

@@ -18,11 +18,10 @@ from conftest import ROOT, free_udp_port
 from pty_relay import PtyRelay
 
 sys.path.insert(0, os.path.join(ROOT, "host_tools"))
-import mavctl_cli  # noqa: E402
-import mavctl_link  # noqa: E402
-import mavctl_progress  # noqa: E402
-from mavctl_errors import (EXIT_NO_HEARTBEAT, EXIT_NO_PORT, EXIT_PERMISSION,  # noqa: E402
-                           EXIT_USAGE)
+from mavctl import cli as mavctl_cli  # noqa: E402
+from mavctl import link as mavctl_link  # noqa: E402
+from mavctl import progress as mavctl_progress  # noqa: E402
+from mavctl.errors import EXIT_NO_HEARTBEAT, EXIT_NO_PORT, EXIT_PERMISSION, EXIT_USAGE  # noqa: E402
 
 MAVCTL = os.path.join(ROOT, ".venv", "bin", "mavctl")
 
@@ -180,7 +179,7 @@ def test_plugins_missing_or_broken(tmp_path, monkeypatch):
     its own subcommands, with a warning."""
     (tmp_path / "broken_plugin.py").write_text("import no_such_dependency_here\n")
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(mavctl_cli, "PLUGINS", ("no_such_plugin", "broken_plugin", "mavctl_params"))
+    monkeypatch.setattr(mavctl_cli, "PLUGINS", ("no_such_plugin", "broken_plugin", "mavctl.params"))
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         ap = mavctl_cli.parser()

@@ -15,7 +15,7 @@ from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink
 
 from conftest import PYTHON, ROOT, free_udp_port, recv
-from mavctl_tools import MAVCTL, check_png, mavctl, mavctl_cli_run, mavproxy_key, ok, refused, signed_board
+from mavctl_tools import check_png, mavctl, mavctl_cli_run, mavproxy_key, ok, refused, signed_board
 from relay import LossyRelay
 
 RADIO = (51, 68)  # a SiK radio's system and component id
@@ -97,7 +97,7 @@ def test_watch_live_view_on_a_terminal_until_ctrl_c(vehicle, tmp_path):
     v = vehicle(links=["udpout:127.0.0.1:%d" % port])
     tlog = tmp_path / "tty.tlog"
     master, slave = os.openpty()
-    proc = subprocess.Popen([PYTHON, MAVCTL, "--connect", "udpin:127.0.0.1:%d" % port, "watch",
+    proc = subprocess.Popen([PYTHON, "-m", "mavctl", "--connect", "udpin:127.0.0.1:%d" % port, "watch",
                              "--tlog", tlog], cwd=ROOT, stdout=slave, stderr=subprocess.PIPE,
                             env=dict(os.environ, COLUMNS="120", LINES="40"))
     os.close(slave)

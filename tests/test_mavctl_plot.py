@@ -64,7 +64,7 @@ def synthetic_tlog(path, seconds=20):
     """A tlog of a vehicle flying a 100 m circle at 30 m, its battery draining, written
     with mavctl's own TlogWriter (frames packed by pymavlink)."""
     from pymavlink.dialects.v20 import common as mavlink
-    from mavctl_tlog import TlogWriter
+    from mavctl.tlog import TlogWriter
     mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
     gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
     t0 = 1.8e9
@@ -91,7 +91,7 @@ def test_log_plot_of_a_tlog(tmp_path):
     assert "drawn to" in out
     check_png(tmp_path / "log.png", 900, 700)
     # The module's own reading of it: 20 s of positions, only the vehicle's.
-    import mavctl_plot
+    from mavctl import plot as mavctl_plot
     series, home = mavctl_plot.read_log(str(tlog))
     assert home is None and len(series["lat"][0]) == 100
     assert math.isclose(series["lat"][0][-1], 19.8, abs_tol=0.01)

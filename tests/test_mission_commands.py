@@ -221,7 +221,7 @@ import struct
 nan = float("nan")
 import sys
 from harness import Bench, Board, heap_requests
-from mavstack.services import mission_items
+from mavstack.services.missions import items as mission_items
 
 class B(Board):
     MISSION_CAPACITY = 20
@@ -281,7 +281,7 @@ def test_simulator_carries_out_roi_camera_gimbal_and_speed(tmp_path):
     from conftest import ROOT
 
     sys.path.insert(0, os.path.join(ROOT, "firmware"))
-    from simulator import Simulator
+    from sim import Simulator
 
     r = Rig(tmp_path, services=("status", "commands", "missions"),
             options={"sim_speed": "50", "sim_climb": "50"})

@@ -13,8 +13,8 @@ from fractions import Fraction
 from hypothesis import given, settings, strategies as st
 
 from conftest import FIRMWARE, MICROPYTHON, ROOT, run_mpy
-from mavstack.services.mission_store import HEADER_SIZE, RECORD_SIZE, MissionStore
-from mavstack.services import mission_items as service
+from mavstack.services.missions.store import HEADER_SIZE, RECORD_SIZE, MissionStore
+from mavstack import units as service
 from mavstack.storage import Storage
 
 TESTS_MPY = os.path.join(ROOT, "tests", "mpy")
@@ -281,7 +281,7 @@ FIXED = (473977420, -85455940, 1, -1, 2147483647, -2147483648, 0, -1224000000, 1
 def test_conversions_agree_on_micropython():
     code = (
         "import struct\n"
-        "from mavstack.services import mission_items as m\n"
+        "from mavstack import units as m\n"
         "out = []\n"
         "for v in %r:\n"
         "    for local in (False, True):\n"
@@ -354,6 +354,6 @@ def test_killed_at_random_points(tmp_path):
         last = _check_after_kill(path, last, size)
     assert kills >= 50 and mid >= 30, (kills, mid)
     # And the firmware boots with what is left.
-    r = run_mpy("from mavstack.services.mission_store import MissionStore\nfrom mavstack.storage import Storage\n"
+    r = run_mpy("from mavstack.services.missions.store import MissionStore\nfrom mavstack.storage import Storage\n"
                 "s = MissionStore(Storage(%r), 'mission', 0, 500)\nprint(s.corrupt, s.count)\n" % str(path))
     assert r.returncode == 0 and r.stdout.split()[0] == "False", r.stdout + r.stderr

@@ -110,7 +110,7 @@ def test_only_the_holders_heartbeats_keep_control(vehicle):
 
 
 def _udp_knows_the_sender():
-    with open(os.path.join(FIRMWARE, "mavstack", "transport.py")) as f:
+    with open(os.path.join(FIRMWARE, "mavstack", "transport", "udp.py")) as f:
         return "rx_peer" in f.read()
 
 

@@ -16,7 +16,7 @@ from mavstack.endpoint import Endpoint
 from mavstack.kernels import crc16
 from mavstack.services import commands as commands_service
 from mavstack.services import params as P
-from mavstack.services import param_table
+from mavstack.services.params import table as param_table
 from mavstack.storage import Storage
 
 sys.path.insert(0, os.path.join(ROOT, "boards"))

@@ -19,7 +19,7 @@ from harness import Bench  # noqa: E402
 from pymavlink.dialects.v20 import common as mav2  # noqa: E402
 
 from mavstack.parser import Parser  # noqa: E402
-from mavstack.services.sha256 import Sha256  # noqa: E402
+from mavstack.kernels.sha256 import Sha256  # noqa: E402
 
 KEY = bytes(range(1, 33))
 EPOCH_2015_US = 1420070400000000
@@ -28,7 +28,7 @@ SHA_SCRIPT = """
 import sys
 import time
 from binascii import hexlify, unhexlify
-from mavstack.services.sha256 import Sha256, SHA256_IMPL
+from mavstack.kernels.sha256 import Sha256, SHA256_IMPL
 h = Sha256()
 out = bytearray(32)
 print(SHA256_IMPL)

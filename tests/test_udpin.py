@@ -86,7 +86,7 @@ def test_transport_on_cpython_adopts_only_valid_frames_and_writes_to_every_peer(
     from pymavlink.dialects.v20 import common as mav
     from mavstack.dialects import common
     from mavstack.endpoint import Endpoint
-    from mavstack.transport_udpin import UdpServer
+    from mavstack.transport.udpin import UdpServer
 
     port = free_udp_port()
     ep = Endpoint(common, 1, 1)

@@ -7,7 +7,7 @@ import random
 import fastcrc
 import pytest
 
-from mavstack.bytes_portable import FIELDS, IDS, SLOTS
+from mavstack.kernels.bytes_portable import FIELDS, IDS, SLOTS
 from wire_oracle import OURS, RUNTIME_IDS, RUNTIMES, corrupt, random_frames, parse_files, run_tool, x25
 
 

@@ -13,8 +13,8 @@ vehicle) must leave storage byte for byte as it was, and the values in force too
 """
 import os
 
-from mavstack.services import param_table
-from mavstack.services.mission_store import MissionStore, RECORD_SIZE
+from mavstack.services.params import table as param_table
+from mavstack.services.missions.store import MissionStore, RECORD_SIZE
 from mavstack.storage import Storage, checksum
 
 

@@ -45,7 +45,7 @@ def _board():
 
 
 def _simulator(ep):
-    from simulator import Simulator
+    from sim import Simulator
 
     return Simulator(ep)
 

@@ -9,7 +9,7 @@ prints `committed k` after each commit.
 import struct
 import sys
 
-from mavstack.services.mission_store import MissionStore, RECORD_SIZE
+from mavstack.services.missions.store import MissionStore, RECORD_SIZE
 from mavstack.storage import Storage
 
 

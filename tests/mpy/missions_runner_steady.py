@@ -23,7 +23,7 @@ import sys
 
 from harness import Bench, heap_requests
 from mavstack.fields import i32_cmp, u16
-from mavstack.services.mission_runner import Item
+from mavstack.services.missions.runner import Item
 
 _ITEM_INT = 73
 _COUNT = 44

@@ -41,7 +41,7 @@ import sys
 from harness import Bench, heap_requests
 from mavstack.fields import u16
 from mavstack.kernels import crc16
-from mavstack.services.mission_store import HEADER_SIZE, RECORD_SIZE, MissionStore
+from mavstack.services.missions.store import HEADER_SIZE, RECORD_SIZE, MissionStore
 
 _COUNT = 44
 _ITEM = 39
@@ -386,7 +386,7 @@ class OutFile:
 def meter(b, stores):
     """Meter the missions service of bench b (its only service)."""
     import mavstack.services.missions as module
-    import mavstack.services.mission_items as items
+    import mavstack.services.missions.items as items
 
     global _copy, _meter
     m = _meter = Meter()

@@ -2,7 +2,7 @@
 
     seed_steady.py DIALECT [ROUNDS]      DIALECT: common or seed2012
 A bench vehicle with the geography, debug, servos, auth, calibration, seed_commands and
-telemetry_seed services gets, each round: SET_GPS_GLOBAL_ORIGIN, SAFETY_SET_ALLOWED_AREA,
+seed_telemetry services gets, each round: SET_GPS_GLOBAL_ORIGIN, SAFETY_SET_ALLOWED_AREA,
 NAMED_VALUE_FLOAT/INT, DEBUG, DEBUG_VECT, MEMORY_VECT, STATE_CORRECTION (seed set), an
 unsigned AUTH_KEY (refused), DO_SET_RELAY, DO_REPEAT_RELAY, DO_SET_SERVO, DO_REPEAT_SERVO,
 PREFLIGHT_CALIBRATION, PREFLIGHT_SET_SENSOR_OFFSETS (default: UNSUPPORTED), OVERRIDE_GOTO
@@ -20,7 +20,7 @@ import micropython
 from harness import Bench
 
 SERVICES = ("status", "commands", "missions", "streams", "geography", "debug", "servos", "auth",
-            "calibration", "seed_commands", "telemetry_seed")
+            "calibration", "seed_commands", "seed_telemetry")
 
 
 class Board:
@@ -92,7 +92,7 @@ def main(dialect_name, rounds):
     geo.on_state_correction = on_state_correction
     ep.services["debug"].handler = on_debug
     servos = ep.services["servos"]
-    echoes = ep.services["telemetry_seed"]
+    echoes = ep.services["seed_telemetry"]
     g = b.gcs()
     lat, lon = 473977420, 85455940
     frames = [

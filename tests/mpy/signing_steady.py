@@ -28,8 +28,9 @@ import sys
 from harness import Bench, Board, heap_requests
 from mavstack.compat import ticks_add, ticks_diff, ticks_ms
 from mavstack.kernels import copy
-from mavstack.services import sha256, signing
-from mavstack.services.sha256 import Signature, SHA256_IMPL
+from mavstack.kernels import sha256
+from mavstack.services import signing
+from mavstack.kernels.sha256 import Signature, SHA256_IMPL
 
 try:
     import micropython

@@ -99,7 +99,7 @@ class Udp:
     def __init__(self, b, port):
         import socket
 
-        from mavstack.transport_udpin import UdpServer
+        from mavstack.transport.udpin import UdpServer
 
         self.port = port
         b.ep.add_link(UdpServer("127.0.0.1", self.port))

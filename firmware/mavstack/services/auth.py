@@ -18,7 +18,7 @@ message: the keys live in buffers made at start-up.
 """
 from ..compat import const
 from ..kernels import copy
-from .statustext import WARNING
+from ..statustext import WARNING
 
 _MSG_AUTH_KEY = const(7)
 _CMD_REQUEST_MESSAGE = const(512)

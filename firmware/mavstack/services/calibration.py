@@ -18,7 +18,7 @@ UNSUPPORTED with a STATUSTEXT: a board with nothing to calibrate has nothing to 
 The simulated vehicle's handler is firmware/sim_seed.py.
 """
 from ..compat import const
-from .statustext import WARNING
+from ..statustext import WARNING
 
 _CMD_PREFLIGHT_CALIBRATION = const(241)
 _CMD_PREFLIGHT_SET_SENSOR_OFFSETS = const(242)

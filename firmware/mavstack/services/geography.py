@@ -45,8 +45,8 @@ from ..compat import const
 from ..fields import i32_cmp, f32_is_nan
 from ..kernels import copy
 from ..storage import save_sealed, sealed
-from .mission_items import fix, LOCAL_FRAMES
-from .statustext import WARNING
+from ..units import LOCAL_FRAMES, fix, unset
+from ..statustext import WARNING
 
 _FRAME_LOCAL_NED = const(1)
 _GLOBAL_TARGET_FRAMES = b"\x00\x03\x05\x06\x0a\x0b"  # global, relative and terrain altitude
@@ -106,7 +106,7 @@ class Geography:
         if ep.has(_MSG_SAFETY_ALLOWED_AREA):
             ep.producers[_MSG_SAFETY_ALLOWED_AREA] = self._area_m
         if ep.has(_MSG_LOCAL_OFFSET):
-            from .telemetry import Slot
+            from .streams.telemetry import Slot
 
             self._slot = Slot(ep, _MSG_LOCAL_OFFSET)
             ep.producers[_MSG_LOCAL_OFFSET] = self._slot.send
@@ -213,9 +213,9 @@ class Geography:
         if not self.area_set or (frame in LOCAL_FRAMES) != self.area_local:
             return 0
         b = self._bounds
-        if not _unset(rec, 16) and not _inside(b, _XMIN, rec, 16):
+        if not unset(rec, 16) and not _inside(b, _XMIN, rec, 16):
             return _INVALID_PARAM5_X
-        if not _unset(rec, 20) and not _inside(b, _YMIN, rec, 20):
+        if not unset(rec, 20) and not _inside(b, _YMIN, rec, 20):
             return _INVALID_PARAM6_Y
         if f32_is_nan(rec, 24):
             return 0
@@ -417,12 +417,8 @@ def _fixed(t, local):
 
 
 def _latitude_ok(p, o):
-    # -90e7 <= lat <= 90e7, by halves (see mission_items)
+    # -90e7 <= lat <= 90e7, by halves (see missions/items.py)
     return i32_cmp(p, o, 13732, 59648) <= 0 and i32_cmp(p, o, -13733, 5888) >= 0
-
-
-def _unset(rec, o):
-    return rec[o] == 0xFF and rec[o + 1] == 0xFF and rec[o + 2] == 0xFF and rec[o + 3] == 0x7F
 
 
 def _zeros(p, n):

@@ -32,7 +32,7 @@ refused ones (host_tools/seed_coverage.py reads it).
 """
 from ..compat import const
 from ..kernels import copy
-from .statustext import WARNING
+from ..statustext import WARNING
 
 _ACCEPTED = const(0)
 _DENIED = const(2)

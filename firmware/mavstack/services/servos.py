@@ -25,8 +25,8 @@ what the application writes there (the unix vehicle's motors are outputs 1-4, it
 from ..compat import const, ticks_diff
 from ..fields import i32
 from ..kernels import copy
-from .mission_items import fix
-from .statustext import WARNING
+from ..units import fix
+from ..statustext import WARNING
 
 _CMD_DO_SET_RELAY = const(181)
 _CMD_DO_REPEAT_RELAY = const(182)

@@ -61,8 +61,8 @@ from ..compat import const, ticks_add, ticks_diff
 from ..kernels import copy
 from ..parser import HEADER_V2, SIGNATURE_LEN
 from ..storage import save_sealed, sealed
-from .sha256 import Signature
-from .statustext import NOTICE, WARNING
+from ..kernels.sha256 import Signature
+from ..statustext import NOTICE, WARNING
 
 _MSG_RADIO_STATUS = const(109)
 _MSG_SETUP_SIGNING = const(256)

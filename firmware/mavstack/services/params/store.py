@@ -1,0 +1,124 @@
+"""Parameters in storage: the file "params" written new and renamed over the old one,
+read back at start-up and on PREFLIGHT_STORAGE 0 (a part of services/params.Params).
+
+The file image itself (header, records by name, checksum) is param_table.py's; this is
+the file work around it, in frames small enough for MicroPython's C stack, so a save or
+a reload asks the heap for nothing.
+"""
+from ...compat import const
+
+FILE = "params"
+
+_SEVERITY_ERROR = const(3)
+_SEVERITY_WARNING = const(4)
+_SEVERITY_NOTICE = const(5)
+_SEVERITY_INFO = const(6)
+
+
+class ParamStore:
+    """Save and load for Params (which has the table, self.ep, self._guard, _say, _take)."""
+
+    def save(self):
+        """Write every value to storage "params", atomically -> success."""
+        if getattr(self.ep, "storage", None) is None:
+            return False
+        with self._guard:
+            self._write()
+        e = self._guard.error
+        if e is not None:
+            self._say(_SEVERITY_ERROR, "params not saved: %s", e, b"params not saved")
+            return False
+        self.dirty = False
+        return True
+
+    def _write(self):
+        storage = self.ep.storage
+        # size: RAM storage gives a file its room when first made.
+        f = self._guard.file = storage.open_new(FILE, size=len(self._image))
+        n = f.write(self.pack())
+        self._guard.file = None
+        f.close()  # before commit: a file system flushes it here
+        if n != len(self._image):
+            raise OSError(28)  # ENOSPC: the file's room is smaller (made by another firmware)
+        storage.commit(FILE)
+
+    def _load(self, boot):
+        """Read storage "params" -> success. At boot an unusable file means defaults;
+        a reload keeps the values in force."""
+        storage = getattr(self.ep, "storage", None)
+        n = -1
+        if storage is not None:
+            if boot:
+                storage.discard_new(FILE)  # a save cut short: the old file stands
+            n = self._read(storage)
+        bad = -1 if n < 0 else self.unpack(self._data, n)
+        if bad < 0:
+            self._not_loaded(boot, storage, n)
+            return False
+        if boot:
+            self.adopt(self._loaded)
+        else:
+            self._take(self._loaded, True)
+        self.dirty = False
+        if bad:
+            self._say(_SEVERITY_NOTICE, "params: %d stored values invalid, defaults used", bad,
+                      b"params: stored values invalid, defaults used")
+        return True
+
+    def _read(self, storage):
+        """The stored file into self._data -> its length, -1 if there is none."""
+        with self._guard:
+            return self._read_file(storage)
+        return -1  # an OSError: no file, or one that cannot be read
+
+    def _read_file(self, storage):
+        f = self._guard.file = storage.open(FILE, "rb")
+        n = f.readinto(self._room(f))
+        self._guard.file = None
+        f.close()
+        return n
+
+    def _room(self, f):
+        """A buffer for file f: the file image's, unless f is bigger (a file another
+        firmware wrote: a rare buffer of its own)."""
+        n = f.seek(0, 2)
+        f.seek(0, 0)
+        self._data = self._image if n <= len(self._image) else bytearray(n)
+        return self._data
+
+    def _not_loaded(self, boot, storage, n):
+        if storage is None:
+            why = "no storage"
+        else:
+            why = "none stored" if n < 0 else "stored file corrupt"
+        if boot:
+            sev = _SEVERITY_INFO if n < 0 else _SEVERITY_WARNING
+            self.ep.statustext(sev, "params: %s, using defaults" % why)
+        else:
+            self._say(_SEVERITY_WARNING, "params not reloaded: %s", why, b"params not reloaded")
+
+
+class Guard:
+    """`with guard:` around work on a storage file: an OSError raised in the block ends
+    there, kept in guard.error, and guard.file, if the block left one open, is closed.
+
+    It is what try/except OSError as e and try/finally would do, but with frames that
+    fit on the C stack (MicroPython takes bigger ones from the heap, on every save), and
+    without the file's own __exit__ (RamFile's takes *exc: a tuple on every call).
+    """
+
+    def __init__(self):
+        self.error = None
+        self.file = None
+
+    def __enter__(self):
+        self.error = None
+        return self
+
+    def __exit__(self, kind, e, tb):
+        f = self.file
+        if f is not None:
+            self.file = None
+            f.close()
+        self.error = e
+        return isinstance(e, OSError)

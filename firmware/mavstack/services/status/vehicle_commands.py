@@ -1,0 +1,167 @@
+"""The vehicle's built-in commands, answered from the status service's state.
+
+COMPONENT_ARM_DISARM (400), DO_SET_MODE (176), PREFLIGHT_REBOOT_SHUTDOWN (246),
+REQUEST_AUTOPILOT_CAPABILITIES (520), GET_HOME_POSITION (410), DO_SET_HOME (179).
+Installed into endpoint.commands by status.attach; the commands service sends the
+ACKs. Commands that change the vehicle need operator control when a passkey is set.
+DO_SET_MODE to a mode the vehicle does not have (a flag it does not support, a custom
+mode not in the board's FLIGHT_MODES) is DENIED by status.set_mode, which says why; on a
+link in PX4's mode convention (services/modes.py) param2 and param3 are PX4's main and sub
+mode. MAV_CMD_DO_SET_STANDARD_MODE is the modes module's.
+"""
+from ...compat import const
+from ...statustext import CRITICAL, WARNING
+
+_ACCEPTED = const(0)
+_TEMPORARILY_REJECTED = const(1)
+_DENIED = const(2)
+
+_CMD_DO_SET_MODE = const(176)
+_CMD_DO_SET_HOME = const(179)
+_CMD_PREFLIGHT_REBOOT_SHUTDOWN = const(246)
+_CMD_COMPONENT_ARM_DISARM = const(400)
+_CMD_GET_HOME_POSITION = const(410)
+_CMD_REQUEST_AUTOPILOT_CAPABILITIES = const(520)
+_MSG_AUTOPILOT_VERSION = const(148)
+_MSG_HOME_POSITION = const(242)
+
+_FORCE_ARM = const(21196)  # COMPONENT_ARM_DISARM param2: skip the checks
+_FORCE_REBOOT = const(20190226)  # REBOOT_SHUTDOWN_CONDITIONS: even when armed
+_REBOOT = const(1)
+_SHUTDOWN = const(2)
+# MAV_FRAME of a COMMAND_INT position
+_FRAME_GLOBAL = const(0)
+_FRAME_GLOBAL_RELATIVE_ALT = const(3)
+_FRAME_GLOBAL_INT = const(5)
+_FRAME_GLOBAL_RELATIVE_ALT_INT = const(6)
+
+
+class VehicleCommands:
+    def __init__(self, ep, status):
+        self.ep = ep
+        self.status = status
+
+    def _in_control(self, cmd, text):
+        # text: a whole constant (joining bytes allocates, and a board may lock its heap)
+        if self.ep.allows(cmd.link):
+            return True
+        self.status.statustext(WARNING, text)
+        return False
+
+    def arm_disarm(self, cmd):
+        # param1: 1 arm, 0 disarm; param2: 21196 forces.
+        if not cmd.finite(1):
+            return _DENIED
+        arm = cmd.int(1)
+        if arm != 0 and arm != 1:
+            return _DENIED
+        if not self._in_control(cmd, b"Arm: GCS not in control"):
+            return _DENIED
+        return self.status.arm(arm == 1, cmd.finite(2) and cmd.int(2) == _FORCE_ARM)
+
+    def set_mode(self, cmd):
+        # param1: base mode (MAV_MODE_FLAG bits), param2: custom mode (NaN: 0).
+        if not cmd.finite(1):
+            return _DENIED
+        base = cmd.int(1)
+        custom = 0
+        if not cmd.nan(2):
+            if not cmd.finite(2):
+                return _DENIED
+            custom = cmd.int(2)
+        if base < 0 or base > 255 or custom < 0:
+            return _DENIED
+        if custom and base & 1 and self.status.modes.px4_link(cmd.link):
+            # PX4's convention (MAVSDK): param2 main mode, param3 sub mode.
+            sub = cmd.int(3) if cmd.finite(3) else 0
+            if custom > 255 or sub < 0 or sub > 63:
+                return _DENIED
+            custom = custom << 16 | sub << 24
+        if not self._in_control(cmd, b"Mode: GCS not in control"):
+            return _DENIED
+        return self.status.set_mode(base, custom)
+
+    def reboot_shutdown(self, cmd):
+        # param1: 0 nothing, 1 reboot, 2 shutdown, 3 reboot to bootloader; param6: conditions.
+        if cmd.nan(1):
+            return _ACCEPTED
+        if not cmd.finite(1):
+            return _DENIED
+        action = cmd.int(1)
+        if action == 0:
+            return _ACCEPTED
+        if action != _REBOOT and not (action == _SHUTDOWN and hasattr(getattr(self.ep, "board", None), "shutdown")):
+            return _DENIED  # a valid request this board cannot carry out
+        if not self._in_control(cmd, b"Reboot: GCS not in control"):
+            return _DENIED
+        if self.status._reboot:
+            # Already on its way (this one's ACK may have been lost): asked again, it keeps
+            # its time rather than being put off by every repeat; the other action waits.
+            return _ACCEPTED if self.status._reboot == action else _TEMPORARILY_REJECTED
+        if self.status.armed and not (cmd.finite(6) and cmd.int(6) == _FORCE_REBOOT):
+            self.status.statustext(CRITICAL, b"Reboot: disarm first")
+            return _DENIED
+        self.status.reboot(action)
+        # What must outlive the restart is stored now: a board's shutdown() may cut the
+        # power before main.py's last word. (A dict look-up: the heap may be locked.)
+        signing = self.ep.services.get("signing")
+        if signing is not None:
+            signing.stop()
+        return _ACCEPTED
+
+    def autopilot_capabilities(self, cmd):
+        if _MSG_AUTOPILOT_VERSION not in self.ep.producers:
+            return _DENIED
+        cmd.reply = _MSG_AUTOPILOT_VERSION
+        return _ACCEPTED
+
+    def get_home(self, cmd):
+        if _MSG_HOME_POSITION not in self.ep.producers:
+            return _DENIED
+        if not self.status.home_set:
+            return _TEMPORARILY_REJECTED  # no position fix yet
+        cmd.reply = _MSG_HOME_POSITION
+        return _ACCEPTED
+
+    def set_home(self, cmd):
+        # param1 1: here (the application's position()); else param5-7 lat, lon, alt (AMSL).
+        status = self.status
+        if not self._in_control(cmd, b"Home: GCS not in control"):
+            return _DENIED
+        if cmd.finite(1) and cmd.int(1) == 1:
+            where = status.position() if status.position is not None else None
+            if where is None:
+                return _TEMPORARILY_REJECTED
+            status.set_home(where[0], where[1], where[2])
+            return _ACCEPTED
+        if not (cmd.finite(5) and cmd.finite(6) and cmd.finite(7)):
+            return _DENIED
+        alt_mm = int(round(cmd.float(7) * 1000))
+        if cmd.is_int:
+            frame = cmd.frame
+            lat = cmd.int(5)
+            lon = cmd.int(6)
+            if frame == _FRAME_GLOBAL_RELATIVE_ALT or frame == _FRAME_GLOBAL_RELATIVE_ALT_INT:
+                alt_mm += status.home_alt
+            elif frame != _FRAME_GLOBAL and frame != _FRAME_GLOBAL_INT:
+                return _DENIED
+        else:
+            lat = int(round(cmd.float(5) * 1e7))
+            lon = int(round(cmd.float(6) * 1e7))
+        if not (-900000000 <= lat <= 900000000 and -1800000000 <= lon <= 1800000000):
+            return _DENIED
+        if not -2000000000 < alt_mm < 2000000000:
+            return _DENIED
+        status.set_home(lat, lon, alt_mm)
+        return _ACCEPTED
+
+
+def install(ep, status):
+    vc = VehicleCommands(ep, status)
+    ep.commands[_CMD_COMPONENT_ARM_DISARM] = vc.arm_disarm
+    ep.commands[_CMD_DO_SET_MODE] = vc.set_mode
+    ep.commands[_CMD_PREFLIGHT_REBOOT_SHUTDOWN] = vc.reboot_shutdown
+    ep.commands[_CMD_REQUEST_AUTOPILOT_CAPABILITIES] = vc.autopilot_capabilities
+    ep.commands[_CMD_GET_HOME_POSITION] = vc.get_home
+    ep.commands[_CMD_DO_SET_HOME] = vc.set_home
+    return vc

@@ -1,0 +1,546 @@
+"""Telemetry slots: the application writes vehicle state, the stream scheduler sends it.
+
+Each telemetry message has one preallocated payload (a slot). A setter packs its
+arguments straight into that payload, so an update allocates nothing and the last
+value written is what goes out. A slot that was never written is not sent.
+Setters take the message's fields in the order the MAVLink definition lists them
+and in its wire units (degE7, mm, cdeg, ...): converting is the application's job,
+so no float is made here. time_boot_ms / time_usec are filled in from the
+endpoint's uptime when the value is written (the moment it was sampled).
+
+Every slot is also the producer of its message (endpoint.producers[msgid]), so
+MAV_CMD_REQUEST_MESSAGE and the stream scheduler (services/streams.py) send it.
+HEARTBEAT, SYS_STATUS, SYSTEM_TIME, STATUSTEXT and HOME_POSITION belong to the
+status service, MISSION_CURRENT to missions; battery() also hands the figures
+SYS_STATUS reports to the status service (status.set_battery).
+
+The dialect gives each payload's layout. Fields MAVLink 2 appended (extensions)
+are packed only where the dialect has them; BATTERY_STATUS differs altogether
+between the seed (six cells, 16 bytes) and today's common set, and battery()
+fills whichever the dialect defines.
+
+Heap: MicroPython takes a function's frame state from the heap, on every call, when
+its locals (the arguments among them) and value stack pass about 11 words. The
+setters therefore pack a few fields at a time; those with six to eight parameters
+first put their values in self._v1.. and a packer of no arguments packs them. Setters
+of nine or more parameters (scaled_imu, raw_imu, optical_flow, battery, highres_imu,
+gps_raw) have more locals than that by their signature alone: each call takes its
+frame from the heap (a few dozen bytes), their helpers none.
+"""
+import struct
+from struct import pack_into
+
+from ...compat import const
+
+_SYS_STATUS = const(1)
+_GPS_RAW_INT = const(24)
+_GPS_STATUS = const(25)
+_SCALED_IMU = const(26)
+_RAW_IMU = const(27)
+_RAW_PRESSURE = const(28)
+_SCALED_PRESSURE = const(29)
+_ATTITUDE = const(30)
+_ATTITUDE_QUATERNION = const(31)
+_LOCAL_POSITION_NED = const(32)
+_GLOBAL_POSITION_INT = const(33)
+_RC_CHANNELS_SCALED = const(34)
+_RC_CHANNELS_RAW = const(35)
+_SERVO_OUTPUT_RAW = const(36)
+_NAV_CONTROLLER_OUTPUT = const(62)
+_RC_CHANNELS = const(65)
+_VFR_HUD = const(74)
+_OPTICAL_FLOW = const(100)
+_HIGHRES_IMU = const(105)
+_BATTERY_STATUS = const(147)
+_EXTENDED_SYS_STATE = const(245)
+_DEBUG_VECT = const(250)
+_NAMED_VALUE_FLOAT = const(251)
+_NAMED_VALUE_INT = const(252)
+_DEBUG = const(254)
+
+# Every message a slot can hold; those the dialect lacks get no slot.
+MESSAGES = (
+    _GPS_RAW_INT, _GPS_STATUS, _SCALED_IMU, _RAW_IMU, _RAW_PRESSURE, _SCALED_PRESSURE,
+    _ATTITUDE, _ATTITUDE_QUATERNION, _LOCAL_POSITION_NED, _GLOBAL_POSITION_INT,
+    _RC_CHANNELS_SCALED, _RC_CHANNELS_RAW, _SERVO_OUTPUT_RAW, _NAV_CONTROLLER_OUTPUT,
+    _RC_CHANNELS, _VFR_HUD, _OPTICAL_FLOW, _HIGHRES_IMU, _BATTERY_STATUS,
+    _EXTENDED_SYS_STATE, _DEBUG_VECT, _NAMED_VALUE_FLOAT, _NAMED_VALUE_INT, _DEBUG,
+)
+# NAMED_VALUE_* carry several values told apart by name; each name keeps its own payload.
+NAMED_VALUES = 4
+
+_UNUSED_U16 = const(0xFFFF)
+_UNUSED_I16 = const(0x7FFF)
+_SEED_BATTERY_SIZE = const(16)
+
+_SIZES = {"B": 1, "b": 1, "s": 1, "H": 2, "h": 2, "I": 4, "i": 4, "f": 4, "Q": 8, "q": 8, "d": 8}
+
+
+def split_fmt(fmt, base_len):
+    """('<base', '<extensions' or None) of a payload format: the MAVLink 1 fields
+    (the first base_len bytes) and those MAVLink 2 appended."""
+    size = 0
+    count = ""
+    for i in range(1, len(fmt)):
+        c = fmt[i]
+        if "0" <= c <= "9":
+            count += c
+            continue
+        size += _SIZES[c] * (int(count) if count else 1)
+        count = ""
+        if size == base_len:
+            if i + 1 == len(fmt):
+                return fmt, None
+            return fmt[: i + 1], "<" + fmt[i + 1:]
+    raise ValueError("format %r is not %d bytes" % (fmt, base_len))
+
+
+class Slot:
+    """One message's payload, packed by its setter and sent as it stands."""
+
+    def __init__(self, ep, msgid):
+        info = ep.dialect.CRC_LEN[msgid]
+        self.msgid = msgid
+        self.size = info >> 16
+        self.buf = bytearray(self.size)
+        self.ext_off = (info >> 8) & 0xFF
+        self.base, self.ext = split_fmt(ep.fmt(msgid), self.ext_off)
+        self.written = False
+
+    def send(self, link):
+        """Producer: send the last value written; False while there is none."""
+        if not self.written:
+            return False
+        return link.send_payload(self.msgid, self.buf, self.size)
+
+
+class NamedSlot(Slot):
+    """NAMED_VALUE_FLOAT/INT: up to NAMED_VALUES names, sent in turn."""
+
+    def __init__(self, ep, msgid, count=NAMED_VALUES):
+        Slot.__init__(self, ep, msgid)
+        self.bufs = [bytearray(self.size) for _ in range(count)]
+        self.names = [None] * count
+        self.used = 0
+        self.next = 0
+
+    def find(self, name):
+        names = self.names
+        for i in range(self.used):
+            if names[i] == name:
+                return self.bufs[i]
+        if self.used == len(names):
+            return self.bufs[self.used - 1]  # full: the last one is shared
+        names[self.used] = name
+        self.used += 1
+        return self.bufs[self.used - 1]
+
+    def send(self, link):
+        if not self.used:
+            return False
+        i = self.next
+        self.next = i + 1 if i + 1 < self.used else 0
+        return link.send_payload(self.msgid, self.bufs[i], self.size)
+
+
+class Telemetry:
+    """The slots of one endpoint (ep.telemetry); the application calls the setters."""
+
+    def __init__(self, ep):
+        self.ep = ep
+        self.slots = {}
+        for msgid in MESSAGES:
+            if ep.has(msgid):
+                if msgid == _NAMED_VALUE_FLOAT or msgid == _NAMED_VALUE_INT:
+                    slot = NamedSlot(ep, msgid)
+                else:
+                    slot = Slot(ep, msgid)
+                self.slots[msgid] = slot
+                ep.producers[msgid] = slot.send
+        g = self.slots.get
+        self._gps_raw = g(_GPS_RAW_INT)
+        self._gps_status = g(_GPS_STATUS)
+        self._scaled_imu = g(_SCALED_IMU)
+        self._raw_imu = g(_RAW_IMU)
+        self._raw_pressure = g(_RAW_PRESSURE)
+        self._scaled_pressure = g(_SCALED_PRESSURE)
+        self._attitude = g(_ATTITUDE)
+        self._quaternion = g(_ATTITUDE_QUATERNION)
+        self._local = g(_LOCAL_POSITION_NED)
+        self._global = g(_GLOBAL_POSITION_INT)
+        self._rc_scaled = g(_RC_CHANNELS_SCALED)
+        self._rc_raw = g(_RC_CHANNELS_RAW)
+        self._rc = g(_RC_CHANNELS)
+        self._servo = g(_SERVO_OUTPUT_RAW)
+        self._nav = g(_NAV_CONTROLLER_OUTPUT)
+        self._hud = g(_VFR_HUD)
+        self._flow = g(_OPTICAL_FLOW)
+        self._highres = g(_HIGHRES_IMU)
+        self._battery = g(_BATTERY_STATUS)
+        self._seed_battery = self._battery is not None and self._battery.size == _SEED_BATTERY_SIZE
+        self._ext_state = g(_EXTENDED_SYS_STATE)
+        self._debug_vect = g(_DEBUG_VECT)
+        self._named_float = g(_NAMED_VALUE_FLOAT)
+        self._named_int = g(_NAMED_VALUE_INT)
+        self._debug = g(_DEBUG)
+        # time_boot_ms / time_usec: stamped as bytes from the endpoint's clock (uptime.py)
+        self.clock = ep.clock
+        # The battery as SYS_STATUS reports it (-1: unknown).
+        self.voltage_mv = 0xFFFF
+        self.current_ca = -1
+        self.remaining = -1
+        # The staged values of the setters of six to eight parameters (see _six_floats):
+        # made here, so that storing them later adds no attribute (the heap may be locked).
+        self._v1 = self._v2 = self._v3 = self._v4 = self._v5 = self._v6 = self._v7 = self._v8 = 0
+
+    # As ints, for applications and tests (heap objects past 2^30 on a 32-bit board).
+    @property
+    def uptime_ms(self):
+        return self.clock.uptime_ms()
+
+    @property
+    def time_boot_ms(self):
+        return self.clock.uptime_ms() & 0xFFFFFFFF
+
+    def written(self, msgid):
+        slot = self.slots.get(msgid)
+        return slot is not None and slot.written
+
+    # --- setters, in the message's field order and units -------------------------
+
+    def attitude(self, roll, pitch, yaw, rollspeed, pitchspeed, yawspeed):
+        """ATTITUDE: rad, rad/s."""
+        self._v1 = roll
+        self._v2 = pitch
+        self._v3 = yaw
+        self._v4 = rollspeed
+        self._v5 = pitchspeed
+        self._v6 = yawspeed
+        self._six_floats(self._attitude)
+
+    def attitude_quaternion(self, q1, q2, q3, q4, rollspeed, pitchspeed, yawspeed):
+        """ATTITUDE_QUATERNION: w, x, y, z; rad/s."""
+        self._v1 = q1
+        self._v2 = q2
+        self._v3 = q3
+        self._v4 = q4
+        self._v5 = rollspeed
+        self._v6 = pitchspeed
+        self._v7 = yawspeed
+        self._put_quaternion()
+
+    def global_position(self, lat, lon, alt, relative_alt, vx, vy, vz, hdg):
+        """GLOBAL_POSITION_INT: degE7, degE7, mm (MSL), mm (above home), cm/s NED, cdeg (65535 unknown)."""
+        self._v1 = lat
+        self._v2 = lon
+        self._v3 = alt
+        self._v4 = relative_alt
+        self._v5 = vx
+        self._v6 = vy
+        self._v7 = vz
+        self._v8 = hdg
+        self._put_global()
+
+    def local_position(self, x, y, z, vx, vy, vz):
+        """LOCAL_POSITION_NED: m, m/s."""
+        self._v1 = x
+        self._v2 = y
+        self._v3 = z
+        self._v4 = vx
+        self._v5 = vy
+        self._v6 = vz
+        self._six_floats(self._local)
+
+    # Packers of the staged values (self._v1..), a few fields a call.
+    def _six_floats(self, s):
+        # ATTITUDE, LOCAL_POSITION_NED: time_boot_ms and six floats.
+        b = s.buf
+        pack_into("<fff", b, 4, self._v1, self._v2, self._v3)
+        pack_into("<fff", b, 16, self._v4, self._v5, self._v6)
+        self.clock.stamp_ms(b, 0)
+        s.written = True
+
+    def _put_quaternion(self):
+        b = self._quaternion.buf
+        pack_into("<ffff", b, 4, self._v1, self._v2, self._v3, self._v4)
+        pack_into("<fff", b, 20, self._v5, self._v6, self._v7)
+        self.clock.stamp_ms(b, 0)
+        self._quaternion.written = True
+
+    def _put_global(self):
+        b = self._global.buf
+        pack_into("<iiii", b, 4, self._v1, self._v2, self._v3, self._v4)
+        pack_into("<hhhH", b, 20, self._v5, self._v6, self._v7, self._v8)
+        self.clock.stamp_ms(b, 0)
+        self._global.written = True
+
+    def gps_raw(self, fix_type, lat, lon, alt, eph, epv, vel, cog, satellites_visible,
+                alt_ellipsoid=0, h_acc=0, v_acc=0, vel_acc=0, hdg_acc=0, yaw=0):
+        """GPS_RAW_INT: GPS_FIX_TYPE, degE7, degE7, mm, HDOP*100, VDOP*100, cm/s, cdeg, count;
+        the accuracies (mm, mm/s, degE5) and yaw (cdeg) where the dialect has them."""
+        s = self._gps_raw
+        struct.pack_into(s.base, s.buf, 0, 0, lat, lon, alt, eph, epv, vel, cog,
+                         fix_type, satellites_visible)
+        self.clock.stamp_us(s.buf, 0)
+        if s.ext is not None:
+            struct.pack_into(s.ext, s.buf, s.ext_off, alt_ellipsoid, h_acc, v_acc, vel_acc, hdg_acc, yaw)
+        s.written = True
+
+    def gps_status(self, satellites_visible, prn, used, elevation, azimuth, snr):
+        """GPS_STATUS: the count and up to 20 satellites' prn, used, elevation (deg),
+        azimuth (deg * 256 / 360) and snr (dB), each a sequence of small ints."""
+        self._gps_status.buf[0] = satellites_visible
+        _bytes20(self._gps_status.buf, 1, prn)
+        _bytes20(self._gps_status.buf, 21, used)
+        _bytes20(self._gps_status.buf, 41, elevation)
+        _bytes20(self._gps_status.buf, 61, azimuth)
+        _bytes20(self._gps_status.buf, 81, snr)
+        self._gps_status.written = True
+
+    def scaled_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag):
+        """SCALED_IMU: mG, mrad/s, mgauss."""
+        s = self._scaled_imu
+        struct.pack_into(s.base, s.buf, 0, 0, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag)
+        self.clock.stamp_ms(s.buf, 0)
+        s.written = True
+
+    def raw_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag):
+        """RAW_IMU: the sensors' raw counts."""
+        s = self._raw_imu
+        struct.pack_into(s.base, s.buf, 0, 0, xacc, yacc, zacc, xgyro, ygyro, zgyro,
+                         xmag, ymag, zmag)
+        self.clock.stamp_us(s.buf, 0)
+        s.written = True
+
+    def raw_pressure(self, press_abs, press_diff1, press_diff2, temperature):
+        """RAW_PRESSURE: raw counts."""
+        pack_into("<hh", self._raw_pressure.buf, 8, press_abs, press_diff1)
+        pack_into("<hh", self._raw_pressure.buf, 12, press_diff2, temperature)
+        self.clock.stamp_us(self._raw_pressure.buf, 0)
+        self._raw_pressure.written = True
+
+    def scaled_pressure(self, press_abs, press_diff, temperature):
+        """SCALED_PRESSURE: hPa, hPa, cdegC."""
+        pack_into("<ffh", self._scaled_pressure.buf, 4, press_abs, press_diff, temperature)
+        self.clock.stamp_ms(self._scaled_pressure.buf, 0)
+        self._scaled_pressure.written = True
+
+    def highres_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag,
+                    abs_pressure, diff_pressure, pressure_alt, temperature, fields_updated):
+        """HIGHRES_IMU: m/s/s, rad/s, gauss, hPa, hPa, m, degC, HIGHRES_IMU_UPDATED_FLAGS."""
+        s = self._highres
+        struct.pack_into(s.base, s.buf, 0, 0, xacc, yacc, zacc, xgyro, ygyro, zgyro,
+                         xmag, ymag, zmag, abs_pressure, diff_pressure, pressure_alt, temperature, fields_updated)
+        self.clock.stamp_us(s.buf, 0)
+        s.written = True
+
+    def rc_channels(self, chans, rssi=255):
+        """RC inputs, a sequence of up to 18 pulse widths (us): fills RC_CHANNELS_RAW
+        (the first 8), RC_CHANNELS_SCALED (1000..2000 us as -10000..10000) and, where
+        the dialect has it, RC_CHANNELS with all of them. rssi 0..254, 255 unknown."""
+        self.clock.stamp_ms(self._rc_raw.buf, 0)
+        self.clock.stamp_ms(self._rc_scaled.buf, 0)
+        _rc8(self._rc_raw.buf, self._rc_scaled.buf, chans)
+        self._rc_raw.buf[21] = rssi
+        self._rc_scaled.buf[21] = rssi
+        self._rc_raw.written = self._rc_scaled.written = True
+        if self._rc is not None:
+            self.clock.stamp_ms(self._rc.buf, 0)
+            off = _put_u16s(self._rc.buf, 4, 40, chans, 0)
+            _fill_u16(self._rc.buf, off, 40, _UNUSED_U16)
+            self._rc.buf[40] = (off - 4) >> 1  # chancount
+            self._rc.buf[41] = rssi
+            self._rc.written = True
+
+    def servo_output(self, outputs, port=0):
+        """SERVO_OUTPUT_RAW: a sequence of up to 8 (16 where the dialect has the
+        extension) output pulse widths (us); missing ones are sent as 0."""
+        b = self._servo.buf
+        self.clock.stamp_us32(b, 0)
+        off = _put_u16s(b, 4, 20, outputs, 0)
+        _fill_u16(b, off, 20, 0)
+        b[20] = port
+        if self._servo.ext is not None:
+            off = _put_u16s(b, 21, 37, outputs, 8)
+            _fill_u16(b, off, 37, 0)
+        self._servo.written = True
+
+    def nav_controller(self, nav_roll, nav_pitch, nav_bearing, target_bearing, wp_dist,
+                       alt_error, aspd_error, xtrack_error):
+        """NAV_CONTROLLER_OUTPUT: deg, deg, deg, deg, m, m, m/s, m."""
+        self._v1 = nav_roll
+        self._v2 = nav_pitch
+        self._v3 = nav_bearing
+        self._v4 = target_bearing
+        self._v5 = wp_dist
+        self._v6 = alt_error
+        self._v7 = aspd_error
+        self._v8 = xtrack_error
+        self._put_nav()
+
+    def _put_nav(self):
+        # nav_roll, nav_pitch, alt_error, aspd_error, xtrack_error, nav_bearing, target_bearing, wp_dist
+        b = self._nav.buf
+        pack_into("<ff", b, 0, self._v1, self._v2)
+        pack_into("<fff", b, 8, self._v6, self._v7, self._v8)
+        pack_into("<hhH", b, 20, self._v3, self._v4, self._v5)
+        self._nav.written = True
+
+    def vfr_hud(self, airspeed, groundspeed, heading, throttle, alt, climb):
+        """VFR_HUD: m/s, m/s, deg (0..360), % (0..100), m (MSL), m/s."""
+        self._v1 = airspeed
+        self._v2 = groundspeed
+        self._v3 = heading
+        self._v4 = throttle
+        self._v5 = alt
+        self._v6 = climb
+        self._put_hud()
+
+    def _put_hud(self):
+        # airspeed, groundspeed, alt, climb, heading, throttle
+        b = self._hud.buf
+        pack_into("<ffff", b, 0, self._v1, self._v2, self._v5, self._v6)
+        pack_into("<hH", b, 16, self._v3, self._v4)
+        self._hud.written = True
+
+    def optical_flow(self, sensor_id, flow_x, flow_y, flow_comp_m_x, flow_comp_m_y, quality,
+                     ground_distance, flow_rate_x=0.0, flow_rate_y=0.0):
+        """OPTICAL_FLOW: dpix, dpix, m/s, m/s, 0..255, m; rad/s where the dialect has them."""
+        s = self._flow
+        struct.pack_into(s.base, s.buf, 0, 0, flow_comp_m_x, flow_comp_m_y,
+                         ground_distance, flow_x, flow_y, sensor_id, quality)
+        self.clock.stamp_us(s.buf, 0)
+        if s.ext is not None:
+            struct.pack_into(s.ext, s.buf, s.ext_off, flow_rate_x, flow_rate_y)
+        s.written = True
+
+    def battery(self, voltage_mv, current_ca=-1, remaining=-1, consumed_mah=-1, cells=None,
+                battery_id=0, temperature=_UNUSED_I16, energy_hj=-1, time_remaining=0, charge_state=0):
+        """The battery: mV, cA (-1 unknown), % (-1 unknown), mAh (-1 unknown), cell mV
+        (a sequence; None: only the total is known), cdegC, hJ, s, MAV_BATTERY_CHARGE_STATE.
+
+        Fills BATTERY_STATUS in the dialect's layout: the seed's has six cells and
+        no consumption or temperature; today's has ten cells (+4 in extensions).
+        The voltage, current and remaining also go to SYS_STATUS (status service).
+        """
+        self.voltage_mv = voltage_mv if voltage_mv < 0xFFFF else 0xFFFE
+        self.current_ca = current_ca
+        self.remaining = remaining
+        status = self.ep.services.get("status")
+        if status is not None:
+            status.set_battery(self.voltage_mv, current_ca, remaining)
+        s = self._battery
+        if s is None:
+            return
+        b = s.buf
+        if self._seed_battery:
+            # voltage_cell_1..6, current_battery, accu_id, battery_remaining
+            _cells(b, 0, 12, voltage_mv, cells)
+            struct.pack_into("<hBb", b, 12, current_ca, battery_id, remaining)
+        else:
+            struct.pack_into("<iih", b, 0, consumed_mah, energy_hj, temperature)
+            _cells(b, 10, 30, voltage_mv, cells)
+            # current_battery, id, battery_function and type (unknown), battery_remaining
+            struct.pack_into("<hBBBb", b, 30, current_ca, battery_id, 0, 0, remaining)
+            if s.ext is not None:
+                struct.pack_into("<iB", b, 36, time_remaining, charge_state)
+                _ext_cells(b, cells)
+        s.written = True
+
+    def extended_sys_state(self, vtol_state, landed_state):
+        """EXTENDED_SYS_STATE: MAV_VTOL_STATE, MAV_LANDED_STATE (today's dialect only)."""
+        s = self._ext_state
+        if s is None:
+            return
+        s.buf[0] = vtol_state
+        s.buf[1] = landed_state
+        s.written = True
+
+    def named_value_float(self, name, value):
+        """NAMED_VALUE_FLOAT: name as bytes, up to 10 (each name is sent in turn)."""
+        buf = self._named_float.find(name)
+        pack_into("<f10s", buf, 4, value, name)
+        self.clock.stamp_ms(buf, 0)
+        self._named_float.written = True
+
+    def named_value_int(self, name, value):
+        """NAMED_VALUE_INT: name as bytes, up to 10; int32 value."""
+        buf = self._named_int.find(name)
+        pack_into("<i10s", buf, 4, value, name)
+        self.clock.stamp_ms(buf, 0)
+        self._named_int.written = True
+
+    def debug(self, ind, value):
+        """DEBUG: index, float value."""
+        pack_into("<fB", self._debug.buf, 4, value, ind)
+        self.clock.stamp_ms(self._debug.buf, 0)
+        self._debug.written = True
+
+    def debug_vect(self, name, x, y, z):
+        """DEBUG_VECT: name as bytes, up to 10; three floats."""
+        pack_into("<ff", self._debug_vect.buf, 8, x, y)
+        pack_into("<f10s", self._debug_vect.buf, 16, z, name)
+        self.clock.stamp_us(self._debug_vect.buf, 0)
+        self._debug_vect.written = True
+
+
+# Helpers of few locals (see the module's note on frames).
+def _bytes20(b, off, values):
+    """20 bytes from off: values' (their low bytes), 0 past their end."""
+    i = 0
+    while i < 20:
+        b[off + i] = values[i] & 0xFF if i < len(values) else 0
+        i += 1
+
+
+def _put_u16s(b, off, end, values, k):
+    """values[k], values[k + 1], ... as uint16 from off, up to end or values' end ->
+    the offset after them."""
+    while off < end and k < len(values):
+        pack_into("<H", b, off, values[k])
+        off += 2
+        k += 1
+    return off
+
+
+def _fill_u16(b, off, end, v):
+    """uint16 v from off up to end."""
+    while off < end:
+        pack_into("<H", b, off, v)
+        off += 2
+
+
+def _rc8(raw, scaled, chans):
+    """The first 8 channels into RC_CHANNELS_RAW (us) and _SCALED (1000..2000 us as
+    -10000..10000); those not given are UINT16_MAX and INT16_MAX."""
+    o = 4
+    while o < 20:
+        k = (o - 4) >> 1
+        if k < len(chans):
+            v = chans[k]
+            pack_into("<H", raw, o, v)
+            v = (v - 1500) * 20
+            if v < -10000:
+                v = -10000
+            elif v > 10000:
+                v = 10000
+            pack_into("<h", scaled, o, v)
+        else:
+            pack_into("<H", raw, o, _UNUSED_U16)
+            pack_into("<h", scaled, o, _UNUSED_I16)
+        o += 2
+
+
+def _cells(b, off, end, total_mv, cells):
+    # Unknown cells are UINT16_MAX; without cell voltages the total goes in cell 1.
+    if cells:
+        off = _put_u16s(b, off, end, cells, 0)
+    else:
+        pack_into("<H", b, off, total_mv if total_mv < _UNUSED_U16 else _UNUSED_U16 - 1)
+        off += 2
+    _fill_u16(b, off, end, _UNUSED_U16)
+
+
+def _ext_cells(b, cells):
+    # BATTERY_STATUS's voltages_ext: cells 11..14, 0 for those not given.
+    _fill_u16(b, _put_u16s(b, 41, 49, cells, 10) if cells else 41, 49, 0)

@@ -1,0 +1,455 @@
+"""The simulated vehicle's flight control (firmware/simulator.py): what it does in each
+flight mode, the flight commands (their handlers: sim_commands.py), the failsafes, and
+the truth telemetry tells of it (landed state, airborne).
+
+Modes (the board's FLIGHT_MODES; a ground station's mode change and the command that
+implies a mode have the same effect):
+  TAKEOFF   straight up to the takeoff altitude (NAV_TAKEOFF's param7 above home, or
+            MIS_TAKEOFF_ALT), then LOITER
+  LOITER    holds where it is; GUIDED holds too, or goes to a commanded point and holds
+            (DO_REPOSITION, NAV_LOITER_UNLIM with a position, MAVProxy's `guided`)
+  RTL       up to RTL_ALT above home (or stays higher), home, down, disarms
+  LAND      down where it is (or at NAV_LAND's position), disarms
+  AUTO      flies the mission (sim_mission.py); at its end it holds (LOITER), or, landed
+            by it (a LAND item, last or not), disarms
+  STABILIZE, ALT_HOLD, POSITION, OFFBOARD   the pilot's demands (sim_inputs.py); without
+            them the vehicle holds
+Nothing leaves the ground disarmed; a vehicle disarmed in the air (a forced disarm) falls.
+Armed on the ground with nothing to do for DISARM_DELAY seconds, it disarms (ArduPilot's
+rule; 0: never).
+
+Commands: NAV_TAKEOFF and NAV_LAND answer IN_PROGRESS (again every half second) and then
+ACCEPTED at the altitude or on touchdown, FAILED if something else happens first; the
+others answer at once. Refusals carry their MAV_RESULT and a STATUSTEXT saying why:
+takeoff disarmed DENIED, takeoff in the air FAILED (ArduPilot's answer), reposition or
+loiter on the ground DENIED, MISSION_START disarmed or without a mission DENIED.
+
+Failsafes: a lost pilot input (sim_inputs.py calls sim.failsafe) or a lost ground station
+(FS_GCS_ENABLE; a mission in AUTO flies on, as ArduPilot's "continue in auto") puts the
+vehicle in LOITER at once and in RTL FS_HOLD_S seconds later, unless the input comes back
+or a ground station picks another mode first.
+"""
+import math
+
+from mavstack.services.inputs import POSITION_GLOBAL, POSITION_LOCAL
+
+from .commands import (ACCEPTED, DENIED, FAILED, IN_PROGRESS, INFO, PILOT_MODES, WARNING, IN_AIR,
+                       LANDING, ON_GROUND, TAKING_OFF, FlightCommands)
+from .inputs import PilotInputs
+from .mission import MissionPilot
+from .motion import distance
+
+_GROUND_M = 0.05  # this close to the ground is on it
+
+
+class FlightPilot(FlightCommands):
+    def __init__(self, sim):
+        self.sim = sim
+        ep = self.ep = sim.ep
+        self.status = ep.services.get("status")
+        self.missions = ep.services.get("missions")
+        self.mission = MissionPilot(sim)  # also the motion model (sim_motion.Motion)
+        self.inputs = None
+        if ep.services.get("inputs") is not None:
+            self.inputs = PilotInputs(sim)
+        self.mode = None  # the flight mode last flown
+        self.hold_at = None  # (lat, lon, alt MSL): where LOITER / GUIDED hold or go
+        self.guided_speed = None  # DO_REPOSITION's speed for this leg (None: the default)
+        self.guided_yaw = None  # ... its heading on arrival (degrees)
+        self.climb_to = None  # TAKEOFF's altitude (MSL)
+        self.rtl_leg = 0  # 0 up to rtl_alt, 1 home, 2 down
+        self.rtl_alt = 0.0
+        self.land_at = None  # (lat, lon) of a NAV_LAND somewhere else
+        self.pending = None  # the command still IN_PROGRESS (takeoff, land)
+        self.pending_cmd = 0
+        self._since_progress = 0.0
+        self.fs_left = None  # seconds of failsafe hold left before RTL
+        self.fs_reason = None
+        self.fs_mode = None  # the mode flown when the input was lost
+        self.paused_mode = None  # DO_PAUSE_CONTINUE: (mode, hold_at, speed, yaw) to continue with
+        self.landed = ON_GROUND
+        self._idle_s = 0.0  # seconds armed on the ground with nothing to do
+        self._airborne = None
+        self._asked = False  # a ground station's mode request was accepted since the last step
+        self._setpoint = False  # a position target arrived (flown in GUIDED, as ArduPilot does)
+        self.guided_velocity = None  # (vn, ve, vd, yaw rate, seconds left) of one in GUIDED
+        self._fly = {"TAKEOFF": self._fly_takeoff, "LOITER": self._fly_hold, "GUIDED": self._fly_guided,
+                     "RTL": self._fly_rtl, "LAND": self._fly_land, "AUTO": self._fly_auto}
+        self._hooks()
+        self._update_landed()
+
+    def _hooks(self):
+        status = self.status
+        if status is not None:
+            status.flight_mode_check = self._mode_check
+            status.arm_check = self._arm_check
+            status.on_gcs_lost = self._gcs_lost
+            status.on_gcs_regained = self._gcs_regained
+        commands = getattr(self.ep, "commands", None)
+        if commands is not None:
+            commands[22] = self._cmd_takeoff
+            commands[21] = self._cmd_land
+            commands[20] = self._cmd_rtl
+            commands[192] = self._cmd_reposition
+            commands[178] = self._cmd_change_speed
+            commands[17] = self._cmd_loiter
+            commands[193] = self._cmd_pause_continue
+            if self.runner is not None:
+                commands[300] = self._cmd_mission_start  # (in place of the runner's: it flies)
+        if self.missions is not None:
+            self.missions.on_guided = self._guided_item
+        seed = self.ep.services.get("seed_commands")
+        if seed is not None:
+            seed.on_goto = self._cmd_goto  # the seed's OVERRIDE_GOTO to a position
+        inputs = self.ep.services.get("inputs")
+        if inputs is not None and self.inputs is not None:
+            inputs.on(POSITION_LOCAL, self._setpoint_arrived)
+            inputs.on(POSITION_GLOBAL, self._setpoint_arrived)
+
+    @property
+    def runner(self):
+        return self.missions.runner if self.missions is not None else None
+
+    # --- each tick ------------------------------------------------------------------
+    def step(self, dt):
+        status = self.status
+        mode = status.flight_mode if status is not None else None
+        if mode is None:  # a board without a mode table: its AUTO flag
+            mode = "AUTO" if status is not None and status.auto else "LOITER"
+        if mode != self.mode or self._asked:
+            self._asked = False
+            self._entered(mode)  # a ground station's change (or the same mode again: afresh)
+        self._failsafe_tick(dt)
+        if status is None or not status.armed:
+            self._disarmed(dt)
+        elif mode in self._fly:
+            self._fly[mode](dt)
+        elif mode in PILOT_MODES:
+            self._fly_pilot(dt)
+        else:
+            self._fly_hold(dt)
+        self._update_landed()
+        self._report_progress(dt)
+        self._idle_disarm(dt)
+
+    def _set_mode(self, name):
+        """The vehicle's own mode change (a command, a failsafe, a takeoff done)."""
+        if self.status is not None:
+            self.status.set_flight_mode(name)
+        self._entered(name)
+
+    def _entered(self, mode):
+        prev, self.mode = self.mode, mode
+        sim = self.sim
+        runner = self.runner
+        if prev == "AUTO" and mode != "AUTO" and runner is not None and runner.running:
+            runner.pause()
+        if mode == "AUTO" and runner is not None and runner.state == 5:  # COMPLETE: fly it again
+            runner.start(0)
+        if self.pending is not None and not (self.pending_cmd == 22 and mode == "TAKEOFF"
+                                             or self.pending_cmd == 21 and mode == "LAND"):
+            self._refuse_pending("interrupted by mode " + mode)
+        if mode != "LOITER":
+            self.fs_left = None  # a ground station took over from the failsafe
+            self.paused_mode = None
+        self.hold_at = (sim.lat, sim.lon, sim.alt)
+        self.guided_speed = self.guided_yaw = self.guided_velocity = None
+        self._setpoint = False
+        self.land_at = None
+        # (TAKEOFF entered in the air climbs to the takeoff altitude, never down to it)
+        self.climb_to = max(self.mission.ground() + self.mission.setting(None, "MIS_TAKEOFF_ALT", 10.0),
+                            sim.alt if self.landed != ON_GROUND else 0.0)
+        self.rtl_leg = 0
+        self.rtl_alt = max(sim.alt, self.mission.home()[2] + self.mission.setting(None, "RTL_ALT", 15.0))
+        sim.target = None
+
+    def _update_landed(self):
+        sim = self.sim
+        rel = sim.alt - self.mission.ground()
+        if rel <= _GROUND_M and sim.vd >= 0:
+            landed = ON_GROUND
+        elif self.landed == ON_GROUND or (self.landed == TAKING_OFF and (self.mode == "TAKEOFF" or rel < 2.0)):
+            landed = TAKING_OFF
+        elif sim.vd > 0.1 and self._landing():
+            landed = LANDING
+        else:
+            landed = IN_AIR
+        self.landed = sim.landed_state = landed
+        airborne = landed != ON_GROUND
+        if airborne != self._airborne and self.status is not None:
+            self._airborne = airborne
+            self.status.set_airborne(airborne)
+
+    def _landing(self):
+        mode = self.mode
+        if mode == "LAND" or (mode == "RTL" and self.rtl_leg == 2):
+            return True
+        runner = self.runner
+        if mode == "AUTO" and runner is not None and runner.state == 3:
+            item = runner.item
+            return item is not None and item.command in (20, 21)
+        return False
+
+    def _report_progress(self, dt):
+        # IN_PROGRESS again every half second: the ground station knows it is under way.
+        if self.pending is None:
+            return
+        self._since_progress += dt
+        if self._since_progress < 0.5:
+            return
+        self._since_progress = 0.0
+        sim = self.sim
+        ground = self.mission.ground()
+        if self.pending_cmd == 22:
+            done = (sim.alt - ground) / max(self.climb_to - ground, 0.1)
+        else:
+            done = 1.0 - (sim.alt - ground) / max(self.hold_at[2] - ground, 0.1)
+        self.pending.progress(max(0, min(99, int(done * 100))))
+
+    # --- the modes ----------------------------------------------------------------------
+    def _disarmed(self, dt):
+        sim = self.sim
+        m = self.mission
+        if self.pending is not None:
+            self._refuse_pending("disarmed")
+        runner = self.runner
+        if runner is not None and runner.running:
+            runner.pause()
+        sim.target = None
+        if sim.alt - m.ground() > _GROUND_M:  # motors stopped in the air
+            m._moved(0.0, 0.0, min(5.0 * dt, sim.alt - m.ground()), dt, 0.0)
+            sim.throttle = 0.0
+        else:
+            m._hold()
+
+    def _fly_hold(self, dt):
+        # LOITER, GUIDED: at (or to) hold_at; on the ground, stays there.
+        m = self.mission
+        if self.landed == ON_GROUND:
+            m._hold()
+            return
+        lat, lon, alt = self.hold_at
+        if m._go(lat, lon, alt, dt, 0.3, speed=self.guided_speed) and self.guided_yaw is not None:
+            m._turn(self.guided_yaw, m.turn_rate, dt)
+
+    def _fly_guided(self, dt):
+        # GUIDED also takes SET_POSITION_TARGET_* as ArduPilot does (MAVProxy's `position`,
+        # `velocity`, `guided forward`): a position is latched when it arrives (a body-frame
+        # offset is from where the vehicle was then); a velocity is flown for 3 s.
+        if self._setpoint:
+            self._setpoint = False
+            demand = self.inputs.demand("OFFBOARD", dt)
+            if demand is not None and demand[0] == "pos" and self.landed != ON_GROUND:
+                self.hold_at = (demand[1], demand[2], demand[3])
+                self.guided_speed = self.guided_velocity = None
+                self.guided_yaw = math.degrees(demand[4]) % 360.0 if demand[4] is not None else None
+            elif demand is not None and demand[0] == "vel" and self.landed != ON_GROUND:
+                self.guided_velocity = demand[1:] + (3.0,)
+        v = self.guided_velocity
+        if v is not None:
+            self.mission.velocity(v[0], v[1], v[2], v[3], dt)
+            self.guided_velocity = v[:4] + (v[4] - dt,) if v[4] > dt else None
+            self.hold_at = (self.sim.lat, self.sim.lon, self.sim.alt)
+            return
+        self._fly_hold(dt)
+
+    def _setpoint_arrived(self, record):
+        self._setpoint = self.mode == "GUIDED"
+
+    def _fly_takeoff(self, dt):
+        sim = self.sim
+        lat, lon = self.hold_at[0], self.hold_at[1]
+        if self.mission._go(lat, lon, self.climb_to, dt, 0.3):
+            self.ep.statustext(INFO, "Takeoff: at %.1f m" % (sim.alt - self.mission.ground()))
+            self._finish(ACCEPTED)
+            self._set_mode("LOITER")
+
+    def _fly_land(self, dt):
+        sim = self.sim
+        m = self.mission
+        if self.land_at is not None:
+            lat, lon = self.land_at
+            if distance(sim.lat, sim.lon, lat, lon) > 0.3:
+                m._go(lat, lon, sim.alt, dt, 0.3)
+                return
+        self._descend(sim.lat, sim.lon, dt)
+
+    def _descend(self, lat, lon, dt):
+        m = self.mission
+        if m._go(lat, lon, m.ground(), dt, _GROUND_M) or self.sim.alt - m.ground() <= _GROUND_M:
+            self._touchdown()
+
+    def _idle_disarm(self, dt):
+        # DISARM_DELAY, as ArduPilot's (PX4: COM_DISARM_PRFLT): armed on the ground, not
+        # taking off and with nothing under way, the motors stop after that many seconds
+        # (0: never). The pilot's throttle up, a takeoff or a mission start lift it first.
+        status = self.status
+        if (status is None or not status.armed or self.landed != ON_GROUND or self.pending is not None
+                or self.mode == "TAKEOFF"):
+            self._idle_s = 0.0
+            return
+        self._idle_s += dt
+        delay = self.mission.setting(None, "DISARM_DELAY", 10.0)
+        if 0 < delay <= self._idle_s:
+            self._idle_s = 0.0
+            status.arm(False, True)
+            self.ep.statustext(INFO, "Disarmed: %d s on the ground, idle" % delay)
+
+    def _touchdown(self):
+        sim = self.sim
+        sim.alt = self.mission.ground()
+        self.mission._hold()
+        if self.status is not None and self.status.armed:
+            self.status.arm(False, True)  # (forced: this is the vehicle's own decision)
+            self.ep.statustext(INFO, "Landed: disarmed")
+        self._finish(ACCEPTED)
+
+    def _fly_rtl(self, dt):
+        sim = self.sim
+        m = self.mission
+        lat, lon, _ = m.home()
+        if self.rtl_leg == 0:
+            if self.landed == ON_GROUND and distance(sim.lat, sim.lon, lat, lon) <= m.radius:
+                self._touchdown()  # home already, on the ground
+                return
+            if m._go(self.hold_at[0], self.hold_at[1], self.rtl_alt, dt, 0.5):
+                self.rtl_leg = 1
+        elif self.rtl_leg == 1:
+            if m._go(lat, lon, self.rtl_alt, dt, m.radius):
+                self.rtl_leg = 2
+        else:
+            self._descend(lat, lon, dt)
+
+    def _fly_auto(self, dt):
+        runner = self.runner
+        if runner is None:
+            self._fly_hold(dt)
+            return
+        before = runner.state
+        self.mission.step(dt)
+        if self.mission.touched_down:  # a LAND item, last or not: down and disarmed, as
+            self.mission.touched_down = False  # ArduPilot and PX4 do (the mission stops)
+            self._touchdown()
+        elif runner.state == 5 and before != 5:  # COMPLETE
+            if self.sim.alt - self.mission.ground() <= _GROUND_M:
+                self._touchdown()
+            else:
+                self.ep.statustext(INFO, "Mission: complete, holding")
+                self._set_mode("LOITER")
+
+    def _fly_pilot(self, dt):
+        # STABILIZE, ALT_HOLD, POSITION, OFFBOARD: the pilot's (or offboard computer's) demand.
+        demand = self.inputs.demand(self.mode, dt) if self.inputs is not None else None
+        sim = self.sim
+        m = self.mission
+        if demand is None:
+            self._fly_hold(dt)
+            return
+        if demand[0] == "vel":
+            if self.landed == ON_GROUND and demand[3] >= 0:
+                m._hold()  # on the ground until the pilot climbs
+            else:
+                m.velocity(demand[1], demand[2], demand[3], demand[4], dt)
+        else:
+            m._go(demand[1], demand[2], demand[3], dt, 0.1)
+            if demand[4] is not None:
+                m._turn(math.degrees(demand[4]) % 360.0, m.turn_rate, dt)
+        self.hold_at = (sim.lat, sim.lon, sim.alt)
+
+    # --- vetoes ---------------------------------------------------------------------------
+    def _mode_check(self, name):
+        """A ground station's mode request: AUTO needs a mission, OFFBOARD a setpoint."""
+        if name == "AUTO":
+            runner = self.runner
+            if runner is None or runner.store.count == 0:
+                return "no mission"
+        answer = None
+        if self.inputs is not None and hasattr(self.inputs, "mode_check"):
+            answer = self.inputs.mode_check(name)
+        self._asked = answer is None  # (the last veto: the mode is entered now)
+        return answer
+
+    def _arm_check(self, arm):
+        if arm and self.mode in ("LAND", "RTL"):
+            return "mode %s: not armable" % self.mode  # (ArduPilot's rule: it would land at once)
+        if arm:
+            return self.sim.pre_arm_check()
+        if self.landed != ON_GROUND:
+            return "in the air: land first (or force)"
+        return None
+
+    # --- commands ---------------------------------------------------------------------------
+    def _refuse(self, result, text):
+        self.ep.statustext(WARNING, text)
+        return result
+
+    def _defer(self, cmd):
+        if self.pending is not None:
+            self._refuse_pending("superseded")
+        self.pending = cmd.defer()
+        self.pending_cmd = cmd.command
+        self._since_progress = 0.0
+        return IN_PROGRESS
+
+    def _finish(self, result):
+        if self.pending is not None:
+            pending, self.pending = self.pending, None
+            pending.done(result)
+
+    def _refuse_pending(self, why):
+        name = "Takeoff" if self.pending_cmd == 22 else "Land"
+        self.ep.statustext(WARNING, name + ": " + why)
+        self._finish(FAILED)
+
+    def _flying(self, what):
+        """None if armed and in the air, else the refusal (MAV_RESULT) with its STATUSTEXT."""
+        if self.status is None or not self.status.armed:
+            return self._refuse(DENIED, what + ": disarmed")
+        if self.landed == ON_GROUND:
+            return self._refuse(DENIED, what + ": on the ground, take off first")
+        return None
+
+    # --- failsafes --------------------------------------------------------------------------
+    def failsafe(self, reason):
+        """Hold at once, return FS_HOLD_S seconds later unless the input comes back."""
+        status = self.status
+        if status is None or not status.armed or self.landed == ON_GROUND or self.mode in ("RTL", "LAND"):
+            self.ep.statustext(WARNING, "Failsafe: " + reason)
+            return
+        hold = self.mission.setting(None, "FS_HOLD_S", 5.0)
+        mode = self.mode
+        self._set_mode("LOITER")
+        self.fs_left, self.fs_reason, self.fs_mode = hold, reason, mode
+        self.ep.statustext(WARNING, "Failsafe: %s: holding, RTL in %.0f s" % (reason, hold))
+
+    def failsafe_clear(self, reason):
+        if self.fs_left is not None:
+            self.fs_left = None
+            self.ep.statustext(INFO, "Failsafe: %s: holding here" % reason)
+
+    def _failsafe_tick(self, dt):
+        if self.fs_left is None:
+            return
+        inputs = self.inputs
+        if self.fs_mode in PILOT_MODES and inputs is not None and inputs.demand(self.fs_mode, 0.0) is not None:
+            self.failsafe_clear("input back")
+            return
+        self.fs_left -= dt
+        if self.fs_left <= 0:
+            self.fs_left = None
+            self.ep.statustext(WARNING, "Failsafe: %s: returning" % self.fs_reason)
+            self._set_mode("RTL")
+
+    def _gcs_lost(self, link):
+        self.ep.statustext(WARNING, "GCS lost on " + link.name)
+        status = self.status
+        for other in self.ep.links:
+            if status.gcs_present(other):
+                return  # another ground station is still there
+        if self.mission.setting(None, "FS_GCS_ENABLE", 1.0) and self.mode != "AUTO":
+            self.failsafe("GCS lost")
+
+    def _gcs_regained(self, link):
+        self.ep.statustext(INFO, "GCS heard on " + link.name)
+        if self.fs_reason == "GCS lost":
+            self.failsafe_clear("GCS back")
