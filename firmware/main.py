@@ -10,6 +10,7 @@ import sys
 
 from mavstack.compat import ticks_ms, ticks_diff, sleep_ms
 from mavstack.endpoint import Endpoint, Reboot, Shutdown
+from mavstack.services import BoardError, compose
 from mavstack.storage import Storage
 from mavstack.transport import open_transport
 
@@ -76,10 +77,7 @@ def build(board, opts):
     else:
         for transport in board.transports():
             ep.add_link(transport)
-    for name in board.SERVICES:
-        gc.collect()  # keep the heap unfragmented while each service loads
-        module = __import__("mavstack.services." + name, None, None, ("create",))
-        module.create(ep)
+    compose(ep, board.SERVICES)  # each after the services it needs (or a BoardError)
     # --set application=0: the stack alone (the unix simulator allocates, so a soak under
     # heap_lock runs without it).
     app = board.application(ep) if hasattr(board, "application") and ep.setting("APPLICATION", True) else None
@@ -159,7 +157,11 @@ def main(argv):
     opts = parse_args(argv)
     board = load_board(opts["board"])
     while True:
-        ep, app = build(board, opts)
+        try:
+            ep, app = build(board, opts)
+        except BoardError as e:  # the profile's SERVICES are wrong: say so in one line
+            print("mavstack: board %s: %s" % (board.NAME, e))
+            sys.exit(1)
         try:
             run(ep, app)
         except Reboot:

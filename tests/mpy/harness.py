@@ -34,6 +34,7 @@ import struct
 
 from mavstack.compat import ticks_add
 from mavstack.endpoint import Endpoint
+from mavstack.services import compose
 from mavstack.encoder import Encoder
 from mavstack.parser import Parser
 from mavstack.kernels import crc16, crc_accumulate
@@ -237,9 +238,7 @@ class Bench:
             ep.storage = Storage(storage)
         self.vehicle_end, self.gcs_end = loop_pair(ring)
         ep.add_link(self.vehicle_end)
-        for name in services:
-            module = __import__("mavstack.services." + name, None, None, ("create",))
-            module.create(ep)
+        compose(ep, services)
         self.ep = ep
         self.app = app(ep) if app is not None else None
         self.version = version

@@ -19,8 +19,8 @@ import micropython
 
 from harness import Bench
 
-SERVICES = ("status", "commands", "missions", "streams", "geography", "debug", "servos", "auth",
-            "calibration", "seed_commands", "seed_telemetry")
+SERVICES = ("status", "commands", "missions", "seed_telemetry", "streams", "geography", "debug", "servos",
+            "auth", "calibration", "seed_commands")
 
 
 class Board:

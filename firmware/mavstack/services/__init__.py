@@ -1,1 +1,38 @@
-"""Optional services a board composes onto an endpoint (see endpoint.Endpoint.add)."""
+"""Optional services a board composes onto an endpoint, in the order of its SERVICES.
+
+A service module has create(ep) (which calls ep.add) and says which others it works with:
+    NEEDS = ("commands",)   it does nothing without these: listed, and before it
+    AFTER = ("inputs",)     when listed, before it (it looks them up at start-up)
+    USES = ("status",)      looked up while running when there (ep.services.get)
+compose() checks the first two and refuses a board that breaks them with one line.
+"""
+import gc
+
+
+class BoardError(Exception):
+    """A board profile that cannot be built; str() is the one line to show its author."""
+
+
+def compose(ep, names):
+    """Attach the services `names` (a board's SERVICES) in order."""
+    for i in range(len(names)):
+        gc.collect()  # keep the heap unfragmented while each service loads
+        module = __import__("mavstack.services." + names[i], None, None, ("create",))
+        why = misplaced(module, names, i)
+        if why:
+            raise BoardError(why)
+        module.create(ep)
+
+
+def misplaced(module, names, i):
+    """Why names[i] (its module given) cannot be built in this order, or None."""
+    name = names[i]
+    for need in getattr(module, "NEEDS", ()):
+        if need not in names:
+            return "service %s needs %s: add it to SERVICES, before %s" % (name, need, name)
+        if names.index(need) > i:
+            return "service %s needs %s: list it before %s in SERVICES" % (name, need, name)
+    for peer in getattr(module, "AFTER", ()):
+        if peer in names and names.index(peer) > i:
+            return "service %s comes after %s: list %s before it in SERVICES" % (name, peer, peer)
+    return None

@@ -20,6 +20,9 @@ The simulated vehicle's handler is firmware/sim_seed.py.
 from ..compat import const
 from ..statustext import WARNING
 
+NEEDS = ("commands",)  # its commands
+USES = ("status",)  # refused while armed
+
 _CMD_PREFLIGHT_CALIBRATION = const(241)
 _CMD_PREFLIGHT_SET_SENSOR_OFFSETS = const(242)
 _DENIED = const(2)

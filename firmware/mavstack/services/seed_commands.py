@@ -34,6 +34,9 @@ from ..compat import const
 from ..kernels import copy
 from ..statustext import WARNING
 
+NEEDS = ("commands",)  # its commands
+USES = ("status", "missions", "geography")
+
 _ACCEPTED = const(0)
 _DENIED = const(2)
 _UNSUPPORTED = const(3)

@@ -25,6 +25,8 @@ from struct import pack_into
 from ..compat import const
 from .streams.telemetry import Slot
 
+AFTER = ("inputs",)  # its echoes share the inputs service's slots
+
 _LOCAL = const(51)
 _GLOBAL = const(52)
 _ATTITUDE = const(58)

@@ -25,8 +25,12 @@ what the application writes there (the unix vehicle's motors are outputs 1-4, it
 from ..compat import const, ticks_diff
 from ..fields import i32
 from ..kernels import copy
+from .commands import Command
 from ..units import fix
 from ..statustext import WARNING
+
+NEEDS = ("commands",)  # its commands
+AFTER = ("streams",)  # SERVO_OUTPUT_RAW: the table goes over the telemetry slot
 
 _CMD_DO_SET_RELAY = const(181)
 _CMD_DO_REPEAT_RELAY = const(182)
@@ -60,8 +64,6 @@ class Servos:
 
     def attach(self, ep):
         self.ep = ep
-        from .commands import Command
-
         self._item_cmd = Command()  # do_item's: a mission item's params read as a command's
         self._by_id = {_CMD_DO_SET_RELAY: self._cmd_set_relay, _CMD_DO_REPEAT_RELAY: self._cmd_repeat_relay,
                        _CMD_DO_SET_SERVO: self._cmd_set_servo, _CMD_DO_REPEAT_SERVO: self._cmd_repeat_servo}

@@ -41,6 +41,8 @@ from ...compat import const, ticks_add, ticks_diff
 from . import record as rec
 from .echo import Echo, ECHOES, HilControls
 
+USES = ("geography", "status")  # the safety area; HIL and operator control
+
 # Kinds
 MANUAL = const(0)
 RC = const(1)

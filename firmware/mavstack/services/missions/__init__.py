@@ -59,7 +59,9 @@ from ...kernels import copy
 from ...units import LOCAL_FRAMES, unfix
 from .store import MissionStore, RECORD_SIZE
 from .upload import Upload, sent_before
-from ...statustext import ERROR as _SEVERITY_ERROR
+
+USES = ("streams", "status", "geography")  # who sends MISSION_CURRENT; the mode; the safety area
+
 
 # Loading this module from a .mpy leaves the loader's garbage between the code it
 # kept: collect it now, so that the class and tables below find room on a small heap.
@@ -87,6 +89,7 @@ _NO_SPACE = const(4)
 _INVALID_SEQUENCE = const(13)
 _DENIED = const(14)
 _OPERATION_CANCELLED = const(15)
+_SEVERITY_ERROR = const(3)  # MAV_SEVERITY (a constant here: a lean board loads no statustext)
 
 _TYPE_MISSION = const(0)
 _TYPE_ALL = const(255)

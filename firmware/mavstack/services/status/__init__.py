@@ -65,6 +65,8 @@ from .operator import Operator, on_change_operator_control
 from . import vehicle_commands
 from .modes import Modes
 
+USES = ("missions", "streams", "signing")  # the fence plan; who sends SYS_STATUS; signing commands
+
 
 # MAV_STATE
 MAV_STATE_BOOT = const(1)

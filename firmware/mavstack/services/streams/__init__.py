@@ -46,6 +46,9 @@ from ...compat import const, ticks_diff, ticks_add
 from ...fields import u16
 from .telemetry import Telemetry
 
+AFTER = ("inputs", "seed_telemetry")  # their slots stream by default
+USES = ("commands", "status")  # the command being answered; the battery for SYS_STATUS
+
 _MSG_REQUEST_DATA_STREAM = const(66)
 _MSG_DATA_STREAM = const(67)
 _MSG_MESSAGE_INTERVAL = const(244)
