@@ -12,14 +12,14 @@ Every transport has the same small, non-blocking, allocation-free face:
                   their peers by this)
 Specs as on the command line: udpout:HOST:PORT, udpin:ADDR:PORT, serial:DEVICE:BAUD.
 """
-UDP_BYTES_PER_S = 200000  # nominal budget for UDP links; boards may override
 
 
-def open_transport(spec, udp_bytes_per_s=UDP_BYTES_PER_S, udp_rx_chunk=0):
+def open_transport(spec, udp_bytes_per_s=None, udp_rx_chunk=0):
     """Build a transport from udpout:HOST:PORT, udpin:ADDR:PORT or serial:DEVICE:BAUD
-    (udp_rx_chunk: bytes a UDP link reads at a time, 0 for UdpTransport.rx_chunk)."""
+    (udp_bytes_per_s: a UDP link's budget, None for udp.UDP_BYTES_PER_S; udp_rx_chunk:
+    bytes a UDP link reads at a time, 0 for UdpTransport.rx_chunk)."""
     kind, _, rest = spec.partition(":")
-    # Imported here, not at the top: a board loads only the transport it uses.
+    # Imported here, not at the top, for RAM: a board loads only the transport it uses.
     if kind == "udpout":
         from .udp import UdpTransport
 

@@ -1,9 +1,10 @@
 """udpout: a UDP link to one ground station (the SITL convention); udpin.py builds on it."""
 from ..compat import MICROPYTHON
-from . import UDP_BYTES_PER_S
+
+UDP_BYTES_PER_S = 200000  # a UDP link's nominal budget; boards may set their own
 
 
-def _sockaddr(socket, host, port):
+def sockaddr(socket, host, port):
     return socket.getaddrinfo(host, port, 0, socket.SOCK_DGRAM)[0][-1]
 
 
@@ -23,7 +24,7 @@ class UdpTransport:
 
     rx_chunk = 4096
 
-    def __init__(self, mode, host, port, bytes_per_s=UDP_BYTES_PER_S, rx_chunk=0):
+    def __init__(self, mode, host, port, bytes_per_s=None, rx_chunk=0):
         import socket
 
         if rx_chunk:
@@ -32,7 +33,7 @@ class UdpTransport:
         self.mode = mode
         self.host = host
         self.port = port
-        self.bytes_per_s = bytes_per_s
+        self.bytes_per_s = UDP_BYTES_PER_S if bytes_per_s is None else bytes_per_s
         self.name = "%s:%s:%d" % (mode, host, port)
         self.rx_overruns = 0
         self._n = 0  # write's count for _send (made here: the heap may be locked later)
@@ -40,7 +41,7 @@ class UdpTransport:
         self.rx_peer = self.peer = None  # the address of what is being parsed; the peer
         if mode == "udpout":
             s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            self.rx_peer = self.peer = _sockaddr(socket, host, port)
+            self.rx_peer = self.peer = sockaddr(socket, host, port)
             s.connect(self.peer)
             s.setblocking(False)
             self._cur = s

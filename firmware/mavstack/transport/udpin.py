@@ -20,7 +20,7 @@ board locked after start-up (compat.heap_open), as does the first datagram the p
 object reports (it makes its event tuple then, once).
 """
 from ..compat import MICROPYTHON, ticks_diff, ticks_add, heap_open, heap_close
-from .udp import UdpTransport, UDP_BYTES_PER_S, _sockaddr
+from .udp import UdpTransport, sockaddr
 
 _PEERS = 4  # ground stations served at once
 _PEER_QUIET_MS = 5000  # a peer silent this long gets no more writes (but the last heard)
@@ -28,7 +28,7 @@ _SWEEP_MS = 1000
 
 
 class UdpServer(UdpTransport):
-    def __init__(self, host, port, bytes_per_s=UDP_BYTES_PER_S, rx_chunk=0, peers=_PEERS):
+    def __init__(self, host, port, bytes_per_s=None, rx_chunk=0, peers=_PEERS):
         import select
 
         UdpTransport.__init__(self, "udpin", host, port, bytes_per_s, rx_chunk)
@@ -42,7 +42,7 @@ class UdpServer(UdpTransport):
         self._rx = -1  # the slot the datagram being parsed came from, -1: none (yet)
         self._next = 0  # the slot read first next time (round robin)
         self._sweep_at = 0
-        self._addr = _sockaddr(self._socket, host, port)
+        self._addr = sockaddr(self._socket, host, port)
         self._listen = self._bound(self._addr)
         self._poll = select.poll()
         self._poll.register(self._listen, select.POLLIN)
