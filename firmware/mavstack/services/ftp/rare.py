@@ -7,8 +7,7 @@ runs them with the heap open (compat.heap_open) even on a board that locked it.
 import os
 
 from ...compat import const, heap_open, heap_close
-from . import files as ftp_files
-from .files import OK, BAD, IS_PROTECTED
+from .files import OK, BAD, IS_PROTECTED, crc32, size_of
 
 _SESSION = const(5)
 _SIZE = const(7)
@@ -157,7 +156,7 @@ class FtpRare:
             return
         if op == _CRC32:
             with open(path, "rb") as f:
-                crc = ftp_files.crc32(f, self._rdata)
+                crc = crc32(f, self._rdata)
             self._ack(4)
             _put_u32(self._reply, _DATA, crc)
             return
@@ -167,7 +166,7 @@ class FtpRare:
             return
         self._files[slot] = open(path, "rb")
         self._paths[slot] = path
-        self._fsize[slot] = size = ftp_files.size_of(path)
+        self._fsize[slot] = size = size_of(path)
         self._sid[slot] = self._req[_SESSION]
         self._mode[slot] = _READING
         self._ack(4)
@@ -183,7 +182,7 @@ class FtpRare:
         if slot < 0:
             self._nak(NO_SESSIONS, 0)
             return
-        had = ftp_files.size_of(path)
+        had = size_of(path)
         try:
             f = open(path, "wb")
         except OSError as e:
