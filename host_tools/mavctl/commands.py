@@ -5,7 +5,7 @@ import math
 import sys
 
 from mavctl import link as mavctl_link
-from mavctl.cli import taken
+from mavctl.args import taken
 from mavctl.errors import EXIT_OK, EXIT_REFUSED, Failure, usage
 from mavctl.vehicle import enum_name, enum_value, mavlink, message_id, message_name
 

@@ -1,12 +1,8 @@
 """Opening the link to a vehicle, for every mavctl subcommand: a --connect spec, or
 auto-connect (the one USB serial device pyserial lists, or the one vehicle heard on
 UDP 14550), then the vehicle's first HEARTBEAT. Each failure is a Failure with a one-line
-message saying what to check and its documented exit status (mavctl_errors).
-
-Plug-in modules use it as
-
-    with mavctl_link.vehicle(args) as v:    # args: mavctl's parsed global options
-        v.recv(("HEARTBEAT",), 2.0)
+message saying what to check and its documented exit status (errors.py). Plug-in
+modules open it with `with link.vehicle(args) as v:` (docs/mavctl.md).
 """
 import contextlib
 import errno
@@ -19,6 +15,7 @@ os.environ["MAVLINK20"] = "1"  # before pymavlink loads its dialect
 from pymavlink import mavutil  # noqa: E402
 
 from mavctl.errors import EXIT_NO_PORT, EXIT_PERMISSION, Failure, usage  # noqa: E402
+from mavctl.keys import key_from  # noqa: E402
 from mavctl.vehicle import MAV_TYPE_GCS, Vehicle  # noqa: E402
 
 DEFAULT_BAUD = 57600
@@ -157,8 +154,6 @@ def vehicle(args):
 def link_key(args):
     """The signing key of --key PASSPHRASE (SHA-256, as MAVProxy derives it) or
     --key-file FILE (32 bytes, 64 hex digits or a passphrase line), None without."""
-    from mavctl.signing import key_from  # (the signing subcommand's own reading of keys)
-
     return key_from(getattr(args, "link_key", None), getattr(args, "link_key_file", None), "--key")
 
 

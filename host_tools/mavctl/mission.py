@@ -3,7 +3,7 @@ points, from and to QGroundControl .plan files (plan_files, all three parts) and
 files (mission_files, one part); set the current item."""
 import sys
 
-from mavctl.cli import group
+from mavctl.args import group
 from mavctl.progress import progress
 from mavctl.vehicle import MISSION_TYPES
 from mavctl.mission_file import read_wpl, write_wpl

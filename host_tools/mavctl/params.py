@@ -6,7 +6,7 @@ import os
 import sys
 
 from mavctl import ROOT
-from mavctl.cli import group
+from mavctl.args import group
 from mavctl.commands import result_status
 from mavctl.errors import EXIT_OK, EXIT_REFUSED, Failure, usage
 from mavctl.progress import progress

@@ -11,7 +11,7 @@ import os
 import sys
 
 from mavctl import link as mavctl_link
-from mavctl.cli import group
+from mavctl.args import group
 from mavctl.errors import EXIT_OK, Failure, usage
 from mavctl.vehicle import MISSION_TYPES, enum_name
 from mavctl.mission_file import LOCAL_FRAMES

@@ -12,54 +12,17 @@ answers with the STATUSTEXT "Signing on" / "Signing off" and nothing else, so su
 proven by what follows: frames from the vehicle that check with the new key (setup), or
 unsigned ones (clear).
 """
-import hashlib
 import sys
 import time
 
-from mavctl.cli import group
+from mavctl.args import group
 from mavctl.errors import EXIT_OK, EXIT_REFUSED, Failure, usage
+from mavctl.keys import key_from
 
 EPOCH_2015 = 1420070400  # signing timestamps count 10 us units from 2015-01-01 UTC
 TRIES = 3
 WAIT_S = 1.5  # per try: the vehicle answers at once, a radio may lose a frame
 LINK_ID = 0
-
-
-def passphrase_key(passphrase):
-    """MAVProxy's key for a passphrase: SHA-256 of its bytes."""
-    return hashlib.sha256(passphrase.encode("utf-8")).digest()
-
-
-def read_key_file(path):
-    try:
-        with open(path, "rb") as f:
-            data = f.read()
-    except OSError as e:
-        raise usage("%s: %s" % (path, e.strerror))
-    if len(data) == 32:
-        return data
-    text = data.decode("utf-8", "replace").strip()
-    if len(text) == 64:
-        try:
-            return bytes.fromhex(text)
-        except ValueError:
-            pass
-    passphrase = text.splitlines()[0].strip() if text else ""
-    if not passphrase:
-        raise usage("%s: empty: a key file holds 32 bytes, 64 hex digits or a passphrase" % path)
-    return passphrase_key(passphrase)
-
-
-def key_from(passphrase, key_file, what):
-    if passphrase is not None and key_file is not None:
-        raise usage("%s: a passphrase or a key file, not both" % what)
-    if key_file is not None:
-        return read_key_file(key_file)
-    if passphrase is not None:
-        if not passphrase:
-            raise usage("%s: an empty passphrase" % what)
-        return passphrase_key(passphrase)
-    return None
 
 
 def timestamp_now():
