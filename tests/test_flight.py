@@ -87,6 +87,33 @@ def landed_states(m, until, timeout=30.0):
     return seen, acks
 
 
+def failsafe(m, what, hold, ret, silent=False, timeout=40.0):
+    """From now until the vehicle is disarmed, everything it reports of a failsafe on
+    `what`, in the order it came: its STATUSTEXTs and the modes its HEARTBEAT shows (repeats
+    folded). Nothing is read past, so a mode shown before its text counts too. Asserts the
+    hold (STATUSTEXT "...: holding", mode `hold`), then the return ("...: returning", mode
+    `ret`), then the landing (disarmed). silent: send no GCS heartbeats meanwhile."""
+    texts, modes = [], []
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        wait = deadline - time.time()
+        msg = recv(m, ["HEARTBEAT", "STATUSTEXT"], wait) if silent else \
+            gcs_tools.listen(m, ["HEARTBEAT", "STATUSTEXT"], wait)
+        if msg is None:
+            break
+        if msg.get_type() == "STATUSTEXT":
+            if msg.text.startswith("Failsafe: %s lost" % what):
+                texts.append(msg.text)
+        elif msg.get_srcSystem() == m.target_system and msg.get_srcComponent() == 1:
+            if not modes or modes[-1] != msg.custom_mode:
+                modes.append(msg.custom_mode)
+            if not msg.base_mode & ARMED:
+                break
+    assert [t.split(":")[2].split(",")[0].strip() for t in texts] == ["holding", "returning"], texts
+    assert hold in modes and ret in modes[modes.index(hold):], modes
+    assert not msg.base_mode & ARMED, modes  # home, landed
+
+
 def test_takeoff_hold_and_land(vehicle):
     v, m = fly_vehicle(vehicle)
     assert heartbeat(m).system_status == STANDBY
@@ -276,12 +303,7 @@ def test_gcs_loss_holds_then_returns(vehicle):
     m.mav.param_set_send(1, 1, b"FS_HOLD_S", 1.0, 9)
     assert recv(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == 1.0
     takeoff(m)
-    # Silence: no heartbeats from here on (recv only).
-    assert recv(m, "STATUSTEXT", 10, lambda s: "Failsafe: GCS lost: holding" in s.text) is not None
-    assert recv(m, "HEARTBEAT", 5, lambda h: h.custom_mode == LOITER) is not None
-    assert recv(m, "STATUSTEXT", 10, lambda s: "Failsafe: GCS lost: returning" in s.text) is not None
-    assert recv(m, "HEARTBEAT", 5, lambda h: h.custom_mode == RTL) is not None
-    assert recv(m, "HEARTBEAT", 30, lambda h: not h.base_mode & ARMED) is not None  # home, landed
+    failsafe(m, "GCS", LOITER, RTL, silent=True)  # silence: no heartbeats from here on
 
 
 def test_gcs_back_before_the_hold_ends_stays_holding(vehicle):
@@ -326,12 +348,7 @@ def test_offboard_setpoints_flown_and_their_loss_holds_then_returns(vehicle):
         there = recv(m, "LOCAL_POSITION_NED", 0.2, lambda p: abs(p.x - 20.0) < 0.5 and abs(p.z + 10.0) < 0.5)
     assert there is not None
     assert gcs_tools.vehicle_heartbeat(m).custom_mode == px4(6)
-    # The stream stops.
-    assert gcs_tools.statustext(m, "Failsafe: Offboard setpoints lost: holding") is not None
-    assert gcs_tools.vehicle_heartbeat(m, lambda h: h.custom_mode == px4(4, 3)) is not None
-    assert gcs_tools.statustext(m, "Failsafe: Offboard setpoints lost: returning") is not None
-    assert gcs_tools.vehicle_heartbeat(m, lambda h: h.custom_mode == px4(4, 5)) is not None
-    assert gcs_tools.vehicle_heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=30) is not None
+    failsafe(m, "Offboard setpoints", px4(4, 3), px4(4, 5))  # the stream stops
 
 
 def test_absurd_numbers_keep_the_vehicle_flying(vehicle):
@@ -375,11 +392,7 @@ def test_manual_control_flies_alt_hold_and_its_loss_returns(vehicle):
     b = sticks(0, 500, 1.0, lambda p: True)
     time.sleep(0.3)
     assert abs(b.relative_alt - a.relative_alt) < 600
-    # The sticks stop.
-    assert gcs_tools.statustext(m, "Failsafe: Manual control lost: holding") is not None
-    assert heartbeat(m, lambda h: h.custom_mode == LOITER) is not None
-    assert heartbeat(m, lambda h: h.custom_mode == RTL) is not None
-    assert heartbeat(m, lambda h: not h.base_mode & ARMED, timeout=30) is not None
+    failsafe(m, "Manual control", LOITER, RTL)  # the sticks stop
     pos = position(m)
     assert metres(pos.lat, pos.lon, LAT0, LON0) < 2.5
 
