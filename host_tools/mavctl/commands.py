@@ -7,7 +7,7 @@ import sys
 from mavctl import link as mavctl_link
 from mavctl.args import taken
 from mavctl.errors import EXIT_OK, EXIT_REFUSED, Failure, usage
-from mavctl.vehicle import enum_name, enum_value, mavlink, message_id, message_name
+from mavctl.names import enum_name, enum_value, mavlink, message_id, message_name
 
 def result_status(what, ack):
     name = enum_name("MAV_RESULT", ack.result)

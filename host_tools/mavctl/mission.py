@@ -5,7 +5,7 @@ import sys
 
 from mavctl.args import group
 from mavctl.progress import progress
-from mavctl.vehicle import MISSION_TYPES
+from mavctl.mission_protocol import MISSION_TYPES
 from mavctl.mission_file import read_wpl, write_wpl
 from mavctl.plan_file import MAV_AUTOPILOT_GENERIC, MAV_TYPE_QUADROTOR, Plan, is_plan, read_plan, write_plan
 

@@ -10,7 +10,7 @@ from mavctl.args import group
 from mavctl.commands import result_status
 from mavctl.errors import EXIT_OK, EXIT_REFUSED, Failure, usage
 from mavctl.progress import progress
-from mavctl.vehicle import mavlink
+from mavctl.names import mavlink
 from mavctl.param_file import read_params, write_params
 
 

@@ -13,7 +13,8 @@ import sys
 from mavctl import link as mavctl_link
 from mavctl.args import group
 from mavctl.errors import EXIT_OK, Failure, usage
-from mavctl.vehicle import MISSION_TYPES, enum_name
+from mavctl.mission_protocol import MISSION_TYPES
+from mavctl.names import enum_name
 from mavctl.mission_file import LOCAL_FRAMES
 from mavctl.plan_file import Plan, read_any
 

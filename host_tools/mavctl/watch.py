@@ -11,7 +11,7 @@ import time
 
 from mavctl.errors import EXIT_OK
 from mavctl.tlog import TlogWriter
-from mavctl.vehicle import enum_name, message_id, message_name
+from mavctl.names import enum_name, message_id, message_name
 
 from pymavlink import mavutil
 
