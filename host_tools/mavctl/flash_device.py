@@ -1,4 +1,4 @@
-"""The board side of flashing (host_tools/flash.py): reach MicroPython's raw REPL over the
+"""The board side of flashing (flash_build.py): reach MicroPython's raw REPL over the
 board's serial port, stopping the program that runs there; read the firmware's .mpy
 version, CPU and machine; bring a built tree over with mpremote's transport, skipping
 files whose SHA-256 the board already has; soft-reset into main.py and wait for the
