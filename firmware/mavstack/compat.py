@@ -1,7 +1,8 @@
 """What differs between MicroPython and CPython, in one place.
 
 The stack is written for MicroPython; on CPython (tests, host tools) the few
-MicroPython-only names get plain equivalents (compat_cpython.py).
+MicroPython-only names get plain equivalents (compat_cpython.py), and on the emulated
+boards the clock comes from qemu.py. Reference: docs/core.md.
 """
 try:
     import time

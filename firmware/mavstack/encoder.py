@@ -4,6 +4,7 @@ Usage, allocation-free per frame:
     off = enc.begin()                       # payload offset for this link's version
     struct.pack_into(FMT, enc.buf, off, ...) # pack the full (MAVLink 2) payload
     n = enc.finish(msgid, sysid, compid)    # frame is enc.buf[0:n]; 0 if not sendable
+Reference: docs/core.md.
 """
 from .compat import const
 from .kernels import crc16, copy, zero
@@ -41,8 +42,7 @@ class Encoder:
             zero(self.buf, off + n, info)
         return off
 
-    # finish and _seal keep few locals: MicroPython takes a frame state of more than
-    # about 11 words (locals plus value stack) from the heap on every call.
+    # finish and _seal keep few locals: docs/design.md.
     def finish(self, msgid, sysid, compid):
         info = self.crc_len.get(msgid)
         if info is None:

@@ -3,6 +3,7 @@
 Services (heartbeat, parameters, commands, missions, streams, ...) are optional
 modules composed per board: each attaches to the endpoint, registers the message
 ids it handles with `on()`, and, if it has periodic work, a `tick(now_ms)`.
+Reference: docs/core.md.
 """
 from .compat import ticks_ms
 from .link import Link
@@ -117,9 +118,7 @@ class Endpoint:
     def dispatch(self, link, msgid, payload):
         handlers = self._handlers.get(msgid)
         if handlers is not None:
-            # By index: a for loop's iterator takes four more words of frame state, and
-            # past about 11 words MicroPython puts the frame on the heap, call by call.
-            i = 0
+            i = 0  # by index: see docs/design.md
             while i < len(handlers):
                 handlers[i](link, payload)
                 i += 1

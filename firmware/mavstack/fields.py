@@ -2,6 +2,7 @@
 
 struct.unpack_from builds a tuple (and floats are heap objects on MicroPython), so
 per-frame handlers read integers byte by byte and test floats by their bits.
+Reference: docs/core.md.
 """
 
 
@@ -50,8 +51,8 @@ def f32_to_int(p, o):
     this reads them without creating a float. NaN and infinities read as 0;
     magnitudes beyond int32 saturate.
     """
-    hi = p[o + 2] | p[o + 3] << 8  # sign, exponent, top of the mantissa: in 16-bit halves,
-    e = (hi >> 7) & 0xFF  # so no int of 2^30 or more is made on a 32-bit board
+    hi = p[o + 2] | p[o + 3] << 8  # sign, exponent, top of the mantissa: in 16-bit halves
+    e = (hi >> 7) & 0xFF  # (small ints: docs/design.md)
     if e == 0xFF or e < 126:
         return 0
     if e > 157:
@@ -66,8 +67,8 @@ def f32_to_int(p, o):
 def i32_cmp(p, o, hi, lo):
     """Compare the int32 at p[o] with hi * 65536 + lo (hi signed, lo 0..0xFFFF) -> -1, 0, 1.
 
-    By 16-bit halves, signed high half first: on a 32-bit port an int of 2^30 or more
-    is a heap object, and coordinates in 1e7 degrees reach 1.8e9.
+    By 16-bit halves, signed high half first: coordinates in 1e7 degrees reach 1.8e9,
+    past the small ints (docs/design.md).
     """
     h = p[o + 2] | p[o + 3] << 8
     if h & 0x8000:

@@ -2,45 +2,10 @@
 version, statistics and byte budget. The endpoint owns several and routes them all to
 one vehicle.
 
-The budget. Every frame a link sends, whoever sends it, is paid from one token bucket
-filled at link.bytes_per_s (in thousandths of a byte, refilled from endpoint.now,
-holding 200 ms of the link: a burst of answers, twenty command ACKs, fits), so the
-link never carries more than its medium does, a bucketful aside. A send is
-ranked; each rank may spend the bucket down to its own floor, so the higher ranks
-always find credit the lower ones left them:
-
-    RANK_VITAL  HEARTBEAT: may go a little into debt (its 1 Hz always holds)
-    RANK_REPLY  answers to the ground station in control (or to anyone when operator
-                control is off) that has not been asking for more than its share
-    RANK_BULK   telemetry streams: what the replies leave
-    RANK_FILL   parameter lists, change announcements: what the streams leave
-    RANK_OTHER  answers to a ground station not in control or over its share (a
-                flood), PING and DATA_STREAM answers: only credit nobody else wants
-    RANK_AUTO   (link.rank's default) while a received frame is being handled: REPLY
-                or OTHER by its sender, as above; outside of it (timers): REPLY
-
-API (allocation-free, 32-bit clean):
-    link.send(msgid, compid=-1) -> bool   frame the payload packed at link.begin() and
-        send it at link.rank; False, with nothing sent and the sequence number given
-        back, when the budget cannot pay for it (counted in link.tx_held) or the
-        transport refused it (link.tx_dropped). A one-off answer that is refused is
-        simply dropped: the ground station asks again.
-    link.can_send(nbytes, rank) -> bool   would a frame of nbytes go at this rank now?
-        Bulk senders ask before producing and wait (a later tick) when it is False.
-    link.rank = RANK_BULK ... link.rank = RANK_AUTO   the rank of the sends made in
-        between, for senders that call producers (send(link) functions) of others.
-    link.tx_bytes, link.tx_low (bytes sent at FILL and OTHER), wrapping at TX_WRAP.
-A link with bytes_per_s of 0 (or over _UNPACED) is not budgeted at all.
-
-A sender's share: each of the last _SENDERS (sysid, compid) a link answered has an
-allowance of bytes: bytes_per_s / 16 at first, refilled (smoothly, with the bucket) at
-bytes_per_s / 16 a second up to bytes_per_s / 8. Its answers are paid from it too, and
-one whose allowance is spent is answered at RANK_OTHER. So a ground station's bursts
-(twenty commands, a page of parameter reads) go at RANK_REPLY, while a flood from any
-one source (or a few) soon waits behind streams and lists and leaves the reserve below
-RANK_BULK's floor to other ground stations' reads and command ACKs. (A flood that
-changes its sysid all the time gets each new identity's allowance once per slot it
-takes over.)
+Every frame a link sends is paid from one token bucket filled at link.bytes_per_s, at a
+rank (RANK_VITAL ... RANK_OTHER) that may spend it down to the rank's own floor; each of
+the last few senders answered has an allowance of its own, so a flood is answered last.
+Reference (the ranks, send, can_send, the senders' shares): docs/core.md.
 """
 from .compat import const, ticks_diff
 from .parser import Parser
@@ -90,7 +55,7 @@ class Link:
         # A transport that wants to know which of its datagrams held a valid frame (UDP
         # servers choose their peers by it): heard(now), bound once here.
         self._heard = getattr(transport, "heard", None)
-        # The budget (see the module's note).
+        # The budget (docs/core.md).
         self.rank = RANK_AUTO
         self.tx_low = 0
         self.tx_held = 0
@@ -152,8 +117,7 @@ class Link:
         self.tx.load(payload, n, msgid)
         return self.send(msgid, compid)
 
-    # --- the budget (small functions: MicroPython takes a frame state of more than
-    # about 11 words from the heap on every call) -------------------------------------
+    # --- the budget (small functions: see docs/design.md) -----------------------------
     def can_send(self, nbytes, rank):
         """Would a frame of nbytes go at rank (RANK_AUTO: as send would rank it) now?"""
         bps = self.bytes_per_s

@@ -1,19 +1,11 @@
 """MAVLink 1 and 2 frame parser: bytes in, CRC-checked frames out, nothing allocated.
 
 A small state machine over one frame buffer (as in MAVLink's C library and
-fastmavlink), fed whatever chunk the transport has. A frame is accumulated in
-`buf` with its start marker at offset 0; its payload is exposed through one of two
-memoryviews made at start-up, zero-extended to the message's full length.
-
-A candidate frame that fails (bad CRC, unknown id, impossible length, unknown
-incompat flags) is not thrown away whole: its bytes after the start marker are
-scanned again, so a valid frame that begins inside rejected bytes is still found.
-
-Most frames arrive whole inside a chunk: for those one kernel call (kernels.scan)
-finds, checks, copies and zero-extends the frame and counts its sequence number, and
-Python only sets the fields and delivers. Whatever that call does not take whole (a
-frame split across chunks, a rejected candidate, ids >= 256) goes through the bytewise
-state machine, so the results are the same either way.
+fastmavlink), fed whatever chunk the transport has; a rejected candidate's bytes are
+scanned again, so a valid frame that begins inside them is still found. Frames that
+arrive whole in a chunk take one kernel call (kernels.scan); the rest go through the
+bytewise state machine, with the same results either way.
+Reference (statistics, late frames, the verify hook): docs/core.md.
 """
 from .compat import const
 from .kernels import crc16, find_stx, copy, zero, scan, SLOTS, FIELDS, IDS
@@ -26,10 +18,9 @@ SIGNATURE_LEN = const(13)
 IFLAG_SIGNED = const(0x01)
 FRAME_MAX = const(280)  # 10 header + 255 payload + 2 crc + 13 signature
 _SOURCES = const(8)  # senders tracked for sequence-gap loss figures
-# Statistics wrap at 2^29: on a 32-bit board an int of 2^30 or more is a heap object, and
-# a counter past it would allocate on every frame (a day of garbage from a noisy radio,
-# six days of frames at 1 kHz). Compare counts by difference modulo 2^29 (COUNT_WRAP + 1),
-# as link.TX_WRAP.
+# Statistics wrap at 2^29, below the small ints' end (docs/design.md): a day of garbage
+# from a noisy radio, six days of frames at 1 kHz would pass it. Compare counts by
+# difference modulo 2^29 (COUNT_WRAP + 1), as link.TX_WRAP.
 COUNT_WRAP = const(0x1FFFFFFF)
 # A frame numbered up to this many before the newest one from its sender is late (held
 # back by the link, or reordered), not a jump ahead over some 200 lost frames. (After an
@@ -106,7 +97,7 @@ class Parser:
                 pos = self._step(data, pos, n)
                 continue
             # Idle: whole frames in data, one kernel call each (see kernels.scan). Few
-            # locals, so that the frame state stays off the heap.
+            # locals: docs/design.md.
             while pos < n:
                 r = scan(data, pos, n if self.verify is None else -n, self.buf)
                 if r < 0:
@@ -151,9 +142,8 @@ class Parser:
             self._deliver()
         return r >> 2
 
-    # The per-frame path keeps few locals: MicroPython takes a frame state of more than
-    # about 11 words (locals plus value stack) from the heap on every call. Bytes being
-    # replayed are told by their buffer (src is self._replay).
+    # The per-frame path keeps few locals (docs/design.md). Bytes being replayed are told
+    # by their buffer (src is self._replay).
     def _step(self, src, pos, end):
         cnt = self._cnt
         if cnt == 0:

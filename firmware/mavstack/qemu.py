@@ -7,10 +7,9 @@ machine.UART, so the clock is here and the MAVLink UART in transport/qemu_uart.p
   micro:bit (Cortex-M0)   clock: nRF51 TIMER0 at 31.25 kHz; MAVLink: the one UART,
                           taken over from the REPL when the vehicle starts
 
-Every register value read here is below 2^30, so reading one never allocates on a
-32-bit port (a value at or above 2^30 would be a heap object there). The UART has a
-one-byte (CMSDK) or six-byte (nRF51) receive FIFO, so waiting (sleep_ms) drains it into
-a ring the way a receive interrupt would, and readinto() takes from that ring.
+Every register value read here is below 2^30, a small int (docs/design.md). Waiting
+(sleep_ms) drains the UARTs' small receive FIFOs into their rings, as a receive
+interrupt would. Reference: docs/core.md.
 """
 import machine
 
@@ -103,8 +102,8 @@ def ticks_us():
     return _clock.us
 
 
-# Wrapping arithmetic on the 30-bit ticks with every intermediate value inside the
-# 31-bit small ints (t + delta itself can pass 2^30, and 2^30 is already a heap int).
+# Wrapping arithmetic on the 30-bit ticks with every intermediate value a small int
+# (t + delta itself can pass 2^30: docs/design.md).
 def ticks_add(t, delta):
     if t >= _HALF:
         t = t - _HALF - _HALF

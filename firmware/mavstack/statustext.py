@@ -3,6 +3,7 @@
 Texts are copied into preallocated 50-byte slots (the field's size; longer texts are
 cut). When the queue is full the oldest text is dropped and counted, so a burst of
 reports never grows memory nor blocks the vehicle. Status drains it onto every link.
+Reference: docs/core.md.
 """
 import struct
 
@@ -68,7 +69,7 @@ class TextQueue:
 
 def _fill(buf, text):
     """buf := text, cut to buf's length and NUL-padded (a helper of its own, with while
-    loops: MicroPython takes a frame state of more than about 11 words from the heap)."""
+    loops: docs/design.md)."""
     n = len(text)
     if n > len(buf):
         n = len(buf)

@@ -4,7 +4,8 @@ A reader never sees a half-written file: the data goes to NAME.new, is flushed,
 and only then renamed over NAME. On boot a leftover NAME.new is discarded.
 Callers add their own header and checksum (see checksum()) to detect a corrupt file.
 `size` (the most a file will hold) is for storage_ram.py, the same face for boards
-without a filesystem; files ignore it.
+without a filesystem; files ignore it. Also: CRC-sealed records (save_sealed, sealed).
+Reference: docs/core.md.
 """
 import os
 

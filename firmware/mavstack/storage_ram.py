@@ -2,24 +2,11 @@
 
 Same face as storage.Storage (exists, open, open_new, commit, discard_new, remove,
 reserve), so parameters, missions and signing keep their code. The region is a
-bytearray the board hands over: on the emulated boards a RAM area outside the GC heap
-(uctypes.bytearray_at), which survives a soft reset but not power-off; on a real board
-the same scheme fits a reserved flash area behind a write-through buffer.
-
-Layout: a 16-byte header (magic, directory size, entries in use), a directory of
-32-byte entries, then the file data. An entry: name (16 bytes, NUL-padded), u32 offset
-of area A (B follows it), u32 capacity of each, u24 length of A, u8 current area, u24
-length of B, u8 flags (exists, two areas). A file replaced with open_new/commit is
-written into the area not in use and becomes the file when commit flips the byte, so a
-reader never sees half a write. Areas are handed out once, when a file is first
-created, at the capacity the creator names (size=), or DEFAULT_SIZE; files made by
-open() (written in place, like the mission slots) get one area only.
-
-Nothing here allocates once a file exists: its two handles are made with it and reused,
-reads and writes copy bytes in place, and every function keeps its frame small (a
-bytecode function with more than ~11 words of locals and stack gets its frame from the
-heap on each call). A service that first writes a file at run time reserves it at
-start-up (reserve()), so that the first save needs no allocation either.
+bytearray the board hands over (on the emulated boards a RAM area outside the GC heap).
+A directory of fixed entries, each file with two areas: open_new writes the one not in
+use and commit flips to it, so a reader never sees half a write. Nothing here allocates
+once a file exists (its handles are made with it); reserve() makes a file at start-up.
+Reference (the region's layout): docs/core.md.
 """
 from .compat import const
 

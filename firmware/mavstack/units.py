@@ -1,7 +1,7 @@
 """Coordinates as MAVLink carries them: MISSION_ITEM's float32 degrees (metres in local
 frames) and MISSION_ITEM_INT's int32 1e7 degrees (1e4 metres), converted exactly in place
-with small ints only (a 1e7-degree int reaches 1.8e9, a heap object on a 32-bit board).
-Used by missions, geography and servos.
+with small ints only (a 1e7-degree int reaches 1.8e9: docs/design.md).
+Used by missions, geography and servos. Reference: docs/core.md.
 """
 LOCAL_FRAMES = b"\x01\x04\x07\x08\x09\x0c\x14\x15"  # x, y in metres (* 1e4 in MISSION_ITEM_INT)
 

@@ -1,16 +1,17 @@
 """The vehicle's clock as the messages carry it: time since boot in ms (uint32) and us
 (uint64), and the time of day in unix us (uint64) once something has told it.
 
-All three are kept as little-endian bytes and stamped into payloads as bytes: on a
-32-bit board any int of 2^30 or more is a heap object, and uptime passes 2^30 ms after
-12.4 days (2^30 us after 18 minutes, and the time of day always). Advancing adds the
-few milliseconds of one poll bytewise, so nothing here allocates.
+All three are kept as little-endian bytes and stamped into payloads as bytes (uptime
+passes 2^30 ms after 12.4 days, 2^30 us after 18 minutes, and the time of day always:
+docs/design.md). Advancing adds the few milliseconds of one poll bytewise, so nothing
+here allocates.
 
     clock = ep.clock                   # made by the endpoint, advanced by its poll
     clock.stamp_ms(buf, off)           # time_boot_ms
     clock.stamp_us(buf, off)           # time_usec (since boot)
     clock.stamp_unix(buf, off)         # time_unix_usec (0 while unknown)
     clock.seconds                      # uptime in whole seconds (a small int for years)
+Reference: docs/core.md.
 """
 from .compat import ticks_diff
 
@@ -89,7 +90,7 @@ class Clock:
     def stamp_unix(self, buf, off):
         _copy(buf, off, self.unix, 8)
 
-    # Python ints, for the application and tests (they may be heap objects on a board).
+    # Python ints, for the application and tests (past the small ints: docs/design.md).
     def uptime_ms(self):
         return int.from_bytes(self.ms, "little")
 

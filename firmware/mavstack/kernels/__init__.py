@@ -1,7 +1,7 @@
 """Picks the byte kernels once, at import: viper where the port has it, else portable.
 
 MAVSTACK_PORTABLE=1 in the environment forces the portable ones (tests use it to
-run the whole stack both ways).
+run the whole stack both ways). Reference (the kernels' contract): docs/core.md.
 """
 from ..compat import MICROPYTHON, getenv
 

@@ -1,31 +1,13 @@
 """Byte kernels in plain Python: the fallback where viper is unavailable, and CPython.
 
-Contract shared with bytes_viper:
+The contract shared with bytes_viper:
   crc16(buf, start, end, crc)  X.25 (CRC-16/MCRF4XX) over buf[start:end], continuing crc
   find_stx(src, pos, end)      index of the first 0xFD/0xFE in src[pos:end], else end
   copy(dst, src, offsets, n)   dst[d:d+n] = src[s:s+n], offsets = d | s << 10 (d < 1024)
   zero(dst, start, end)        dst[start:end] = 0
-  scan(src, pos, end, buf)     one whole frame at src[pos:end] into a parser's buffer (below)
+  scan(src, pos, end, buf)     one whole frame at src[pos:end] into a parser's buffer
 Loops over indices rather than slices so that nothing is allocated on MicroPython.
-
-scan is the parser's fast path: what it delivers, the bytewise state machine would
-deliver the same way; anything else it leaves to that state machine. buf is the
-parser's buffer: the frame at [0:SLOTS), then 8 sender slots of (in use, sysid, compid,
-last seq) at [SLOTS:FIELDS), at FIELDS the version the parser's version, payload and
-signed fields hold from the last frame scan delivered (0: unknown, Python's to clear),
-then for each msgid < 256 (crc_extra, least length, full length) at IDS + 3 * msgid,
-full length 0 for an id the dialect lacks. end < 0 means -end, and "careful": a valid
-frame is copied but left to Python to deliver (a verify hook is set). Returns
-  e << 2 | v1 << 1 | f a frame src[pos:e], unsigned, copied into buf, payload zero-
-                       extended to its full length, its sender's sequence number stored
-                       (in a slot already, no gap): Python sets the fields (version,
-                       payload and signed too when f is 1) and delivers
-  -1 - (k << 2)        src[pos:k] holds no start marker (k = end if none at all)
-  -1 - (pos << 2 | 1)  the state machine takes it from pos: frame incomplete, id >= 256,
-                       or rejected (impossible length or flags, unknown id, bad CRC)
-  -1 - (e << 2 | 2)    a frame src[pos:e] copied into buf as on the wire (signed,
-                       careful, new sender, or a sequence gap): Python delivers it
-After the second and the third answers buf[0:SLOTS] is scratch, its bytes unspecified.
+Reference (scan's buffer layout and answers): docs/core.md.
 """
 from ..compat import const
 
@@ -94,7 +76,7 @@ def find_stx(src, pos, end):
 
 def copy(dst, src, offsets, n):
     # One index for both sides, and a while loop (a for-range loop keeps more on the
-    # stack): the frame stays within the ~11 words MicroPython keeps off the heap.
+    # stack): a small frame, docs/design.md.
     s = offsets >> 10
     n += s
     d = (offsets & 0x3FF) - s
@@ -109,7 +91,7 @@ def zero(dst, start, end):
 
 
 def scan(src, pos, end, buf):
-    # Small steps, each within the ~11 words of frame state MicroPython keeps off the heap.
+    # Small steps, each with a small frame (docs/design.md).
     if end < 0:
         n = _check(src, pos, -end, buf)
         if n > 0:

@@ -44,7 +44,7 @@ def zero(dst: ptr8, start: int, end: int):
         start += 1
 
 
-# scan's layout of the parser's buffer after the frame; bytes_portable.py has the contract.
+# scan's layout of the parser's buffer after the frame; docs/core.md has the contract.
 SLOTS = const(280)
 FIELDS = const(312)
 IDS = const(316)

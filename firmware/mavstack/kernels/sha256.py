@@ -8,6 +8,7 @@ sha256_portable, chosen like the byte kernels (kernels.IMPL, MAVSTACK_PORTABLE=1
     s = Signature(); s.sign(key32, frame, n)  -> the 6 signature bytes at frame[n:n+6]
         over key + frame[0:n], where frame[0:n] is header, payload, CRC, link id, timestamp
     s.matches(key32, frame, n)  -> do frame[n:n+6] hold that signature?
+Reference: docs/services/signing.md.
 """
 from ..compat import const
 from . import IMPL, copy, zero
@@ -30,9 +31,7 @@ SIGNATURE_BYTES = const(6)
 
 
 class Sha256:
-    # Methods are small on purpose: a MicroPython function whose locals and value stack
-    # pass 11 words gets its frame from the heap (on the C stack only when the heap is
-    # locked), and these run for every signed frame.
+    # Methods are small on purpose (docs/design.md): these run for every signed frame.
     def __init__(self):
         self.state = bytearray(32)
         self.block = bytearray(_BLOCK)

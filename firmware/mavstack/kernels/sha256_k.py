@@ -1,4 +1,4 @@
-"""SHA-256 round constants (FIPS 180-4), shared by bytes_viper and bytes_portable."""
+"""SHA-256 round constants (FIPS 180-4), shared by sha256_viper and sha256_portable."""
 from array import array
 
 SHA256_K = array("I", (

@@ -6,17 +6,13 @@
                                so callers count it as overwritten)
 
 Same contract as sha256_viper. Apart from the byte kernels (bytes_portable) so that
-only boards that sign carry it; loaded by mavstack.services.sha256.
+only boards that sign carry it; loaded by kernels/sha256.py.
 
-On a 32-bit port an int of 2^30 or more is a heap object, so no 32-bit word is ever a
-Python int here: every word is two 16-bit halves (hi, lo). Sums of halves carry from lo
-into hi; a rotation is shifts across the halves, XORed together unmasked and masked
-once. No term is shifted left so far that it reaches 2^30 (rotr 17 keeps only the low
-bit of the half it shifts left by 15, so only that bit is shifted). The message
-schedule and the working variables live in lists made once at import; each function
-keeps few enough locals that MicroPython runs its frame on the C stack (past 11 words
-of locals and value stack the VM asks the heap for the frame). Not reentrant: one
-compression at a time (no threads or interrupts sign).
+No 32-bit word is ever a Python int here (docs/design.md): every word is two 16-bit
+halves (hi, lo). Sums of halves carry from lo into hi; a rotation is shifts across the
+halves, XORed together unmasked and masked once; no term is shifted left as far as 2^30.
+The schedule and working variables live in lists made once at import, and functions keep
+small frames. Not reentrant: one compression at a time (no threads or interrupts sign).
 """
 from .sha256_k import SHA256_K
 
@@ -46,6 +42,8 @@ def _sched(w, i):
     hi = (h >> 7 ^ l << 9 ^ l >> 2 ^ h << 14 ^ h >> 3) & 0xFFFF
     h = w[i - 4]
     l = w[i - 3]
+    # rotr 17 keeps only the low bit of the half it shifts left by 15: only that bit is
+    # shifted, so no term reaches 2^30.
     lo += (h >> 1 ^ (l & 1) << 15 ^ h >> 3 ^ l << 13 ^ l >> 10 ^ h << 6) & 0xFFFF
     hi += (l >> 1 ^ (h & 1) << 15 ^ l >> 3 ^ h << 13 ^ h >> 10) & 0xFFFF
     lo += w[i - 13] + w[i - 31]

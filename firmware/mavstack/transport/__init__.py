@@ -11,6 +11,7 @@ Every transport has the same small, non-blocking, allocation-free face:
     heard(now)    optional: the link found a valid frame in it (UDP servers pick
                   their peers by this)
 Specs as on the command line: udpout:HOST:PORT, udpin:ADDR:PORT, serial:DEVICE:BAUD.
+Reference: docs/core.md.
 """
 
 

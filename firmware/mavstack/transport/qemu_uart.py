@@ -3,6 +3,7 @@ qemu port has no machine.UART): CMSDK UART 1 on the MPS2-AN385 (Cortex-M3; the R
 UART 0), the nRF51's one UART on the micro:bit (Cortex-M0), taken over from the REPL.
 Its FIFO holds one (CMSDK) or six (nRF51) bytes, so the clock's sleep_ms drains it into a
 ring, as a receive interrupt would, and readinto() takes from that ring.
+Reference: docs/core.md.
 """
 from machine import mem32 as _mem32
 
@@ -12,8 +13,8 @@ if MODEL == "m3":
     _UART = 0x40005000  # CMSDK APB UART 1: DATA, STATE (+4), CTRL (+8), BAUDDIV (+16)
     _UART_STATE = 0x40005004
 else:
-    # nRF51 UART0 at 0x40002000. Addresses are written out: each is an int past 2^30, and
-    # base + offset would make a new one (a heap object) on every use.
+    # nRF51 UART0 at 0x40002000. Addresses are written out: each is an int past 2^30
+    # (docs/design.md), and base + offset would make a new one on every use.
     _RXDRDY = 0x40002108
     _RXD = 0x40002518
     _TXD = 0x4000251C
@@ -81,8 +82,7 @@ class UartTransport:
             return True
 
     def readinto(self, buf, limit=0):
-        # Small functions: a bytecode function with more than ~11 words of locals and
-        # stack gets its frame from the heap on every call.
+        # (small functions: docs/design.md)
         self.drain()
         n = self._count
         if n > len(buf):

@@ -1,7 +1,8 @@
 """Serial byte transports: a tty or pty on a unix host, and a board's machine.UART.
 
-Same face as the UDP transport (transport.py): readinto(buf), write(buf, n),
+Same face as every transport (transport/__init__.py): readinto(buf), write(buf, n),
 bytes_per_s (the baud rate / 10: 8N1 takes ten bit times a byte), name, close().
+Reference: docs/core.md.
 """
 from ..compat import MICROPYTHON
 
@@ -53,8 +54,7 @@ class SerialTransport:
 
     if MICROPYTHON:
 
-        # Small functions, few locals: MicroPython takes a frame state of more than about
-        # 11 words (locals, value stack, three for a try) from the heap on every call.
+        # Small functions, few locals (a try takes frame words too): docs/design.md.
         def readinto(self, buf):
             try:
                 return self._f.readinto(buf) or 0

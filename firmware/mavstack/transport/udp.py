@@ -1,4 +1,7 @@
-"""udpout: a UDP link to one ground station (the SITL convention); udpin.py builds on it."""
+"""udpout: a UDP link to one ground station (the SITL convention); udpin.py builds on it.
+
+Reference: docs/core.md.
+"""
 from ..compat import MICROPYTHON
 
 UDP_BYTES_PER_S = 200000  # a UDP link's nominal budget; boards may set their own
@@ -58,8 +61,8 @@ class UdpTransport:
 
     # _read and _send: -> bytes, 0 when the socket cannot now (nothing waiting, no room),
     # -1 on an error (the peer's port is closed: the kernel's "port unreachable" comes
-    # back to a connected socket). Small, with the socket in self._cur: MicroPython takes
-    # a frame state of more than about 11 words (a try is three) from the heap per call.
+    # back to a connected socket). Small, with the socket in self._cur: a try takes frame
+    # words too (docs/design.md).
     if MICROPYTHON:
 
         def _read(self, buf):

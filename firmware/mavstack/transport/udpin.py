@@ -1,23 +1,12 @@
 """The udpin link: a UDP server on ADDR:PORT that ground stations call, serving several
 at once as an autopilot's UDP server does. Loaded only by a board that listens.
 
-Peers. An address becomes a peer with its first CRC-valid MAVLink frame (the link calls
-heard(now) for every valid frame; rx_peer is the address that sent the datagram being
-parsed), never with anything else: junk from anywhere changes nothing. Every frame is
-written to every peer heard from in the last _PEER_QUIET_MS, and always to the one
-heard last, so a ground station that only listens keeps its stream; a peer whose port
-is closed (a read or write of its socket fails: a one-shot tool that finished) gets no
-more until it speaks again. A newcomer takes a free slot, or one that gets no writes,
-or the slot of a peer silent that long; while every slot is busy with a live ground
-station its frames are still handled, but it hears nothing back.
-
-Each peer has a socket bound to the server's port and connect()ed to it, so that its
-reads and writes are the stream calls, which allocate nothing. An unconnected socket
-bound to the same port gets only datagrams from addresses no socket is connected to,
-read with recvfrom (it allocates: an address that is not a peer is not the steady
-state), and a new peer's socket is made then (rare). Those rare events open a heap the
-board locked after start-up (compat.heap_open), as does the first datagram the poll
-object reports (it makes its event tuple then, once).
+An address becomes a peer with its first CRC-valid MAVLink frame (heard(now)), never
+with anything else: junk from anywhere changes nothing. Frames go to every peer heard
+from lately and always to the last one heard. Each peer has its own connected socket
+(stream calls, allocating nothing); newcomers arrive on an unconnected one, a rare
+event that opens a locked heap for its moment.
+Reference (peers, slots, sockets): docs/core.md.
 """
 from ..compat import MICROPYTHON, ticks_diff, ticks_add, heap_open, heap_close
 from .udp import UdpTransport, sockaddr
@@ -69,8 +58,7 @@ class UdpServer(UdpTransport):
         s.setblocking(False)
         return s
 
-    # --- reading: every poll (small functions of few locals: MicroPython takes a frame
-    # state of more than about 11 words from the heap on every call) -------------------
+    # --- reading: every poll (small functions of few locals: docs/design.md) -----------
     def readinto(self, buf):
         n = self._read_peers(buf)
         if not n and self._waiting():
@@ -108,7 +96,7 @@ class UdpServer(UdpTransport):
 
     def _waiting(self):
         """Is a datagram waiting on the listening socket? (Asked on every poll: apart
-        from _newcomer, whose try and locals take a frame state from the heap.)"""
+        from _newcomer, whose try and locals make a large frame: docs/design.md.)"""
         if not self._primed:
             return self._first_wait()
         for _obj, _ev in (self._poll.ipoll(0) if MICROPYTHON else self._poll.poll(0)):
