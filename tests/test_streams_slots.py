@@ -13,7 +13,8 @@ from harness import Bench  # noqa: E402
 import wire_oracle  # noqa: E402
 
 from mavstack.dialects import common, seed2012  # noqa: E402
-from mavstack.services.streams.telemetry import split_fmt, MESSAGES  # noqa: E402
+from mavstack.services.streams.slots import split_fmt  # noqa: E402
+from mavstack.services.streams.telemetry import MESSAGES  # noqa: E402
 
 approx = pytest.approx
 U16 = 0xFFFF

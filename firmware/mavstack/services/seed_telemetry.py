@@ -23,7 +23,7 @@ service after "inputs").
 from struct import pack_into
 
 from ..compat import const
-from .streams.telemetry import Slot
+from .streams.slots import Slot
 
 AFTER = ("inputs",)  # its echoes share the inputs service's slots
 

@@ -14,7 +14,7 @@ drive its actuators with, here the pilot's manual input (roll = y, pitch = x, ya
 throttle = z, over 1000), written as float32 bits from the integers.
 """
 from ...kernels import copy
-from ..streams.telemetry import Slot
+from ..streams.slots import Slot
 
 
 class Echo:

@@ -1,38 +1,17 @@
-"""Telemetry slots: the application writes vehicle state, the stream scheduler sends it.
+"""Telemetry: the typed writers the application calls (ep.telemetry.attitude(...), ...).
 
-Each telemetry message has one preallocated payload (a slot). A setter packs its
-arguments straight into that payload, so an update allocates nothing and the last
-value written is what goes out. A slot that was never written is not sent.
-Setters take the message's fields in the order the MAVLink definition lists them
-and in its wire units (degE7, mm, cdeg, ...): converting is the application's job,
-so no float is made here. time_boot_ms / time_usec are filled in from the
-endpoint's uptime when the value is written (the moment it was sampled).
-
-Every slot is also the producer of its message (endpoint.producers[msgid]), so
-MAV_CMD_REQUEST_MESSAGE and the stream scheduler (services/streams.py) send it.
-HEARTBEAT, SYS_STATUS, SYSTEM_TIME, STATUSTEXT and HOME_POSITION belong to the
-status service, MISSION_CURRENT to missions; battery() also hands the figures
-SYS_STATUS reports to the status service (status.set_battery).
-
-The dialect gives each payload's layout. Fields MAVLink 2 appended (extensions)
-are packed only where the dialect has them; BATTERY_STATUS differs altogether
-between the seed (six cells, 16 bytes) and today's common set, and battery()
-fills whichever the dialect defines.
-
-Heap: MicroPython takes a function's frame state from the heap, on every call, when
-its locals (the arguments among them) and value stack pass about 11 words. The
-setters therefore pack a few fields at a time; those with six to eight parameters
-first put their values in self._v1.. and a packer of no arguments packs them. Setters
-of nine or more parameters (scaled_imu, raw_imu, optical_flow, battery, highres_imu,
-gps_raw) have more locals than that by their signature alone: each call takes its
-frame from the heap (a few dozen bytes), their helpers none.
+Each writer takes its message's fields in the MAVLink definition's order and wire units,
+packs them into the message's slot (slots.py) and stamps time_boot_ms / time_usec from the
+endpoint's clock; the stream scheduler and REQUEST_MESSAGE send the slot. battery() also
+hands SYS_STATUS's figures to the status service. Reference: docs/services/streams.md.
 """
 import struct
 from struct import pack_into
 
 from ...compat import const
+from .slots import (NamedSlot, Slot, fill_u16, put_bytes20, put_cells, put_ext_cells,
+                    put_rc8, put_u16s)
 
-_SYS_STATUS = const(1)
 _GPS_RAW_INT = const(24)
 _GPS_STATUS = const(25)
 _SCALED_IMU = const(26)
@@ -66,81 +45,9 @@ MESSAGES = (
     _RC_CHANNELS, _VFR_HUD, _OPTICAL_FLOW, _HIGHRES_IMU, _BATTERY_STATUS,
     _EXTENDED_SYS_STATE, _DEBUG_VECT, _NAMED_VALUE_FLOAT, _NAMED_VALUE_INT, _DEBUG,
 )
-# NAMED_VALUE_* carry several values told apart by name; each name keeps its own payload.
-NAMED_VALUES = 4
-
 _UNUSED_U16 = const(0xFFFF)
 _UNUSED_I16 = const(0x7FFF)
 _SEED_BATTERY_SIZE = const(16)
-
-_SIZES = {"B": 1, "b": 1, "s": 1, "H": 2, "h": 2, "I": 4, "i": 4, "f": 4, "Q": 8, "q": 8, "d": 8}
-
-
-def split_fmt(fmt, base_len):
-    """('<base', '<extensions' or None) of a payload format: the MAVLink 1 fields
-    (the first base_len bytes) and those MAVLink 2 appended."""
-    size = 0
-    count = ""
-    for i in range(1, len(fmt)):
-        c = fmt[i]
-        if "0" <= c <= "9":
-            count += c
-            continue
-        size += _SIZES[c] * (int(count) if count else 1)
-        count = ""
-        if size == base_len:
-            if i + 1 == len(fmt):
-                return fmt, None
-            return fmt[: i + 1], "<" + fmt[i + 1:]
-    raise ValueError("format %r is not %d bytes" % (fmt, base_len))
-
-
-class Slot:
-    """One message's payload, packed by its setter and sent as it stands."""
-
-    def __init__(self, ep, msgid):
-        info = ep.dialect.CRC_LEN[msgid]
-        self.msgid = msgid
-        self.size = info >> 16
-        self.buf = bytearray(self.size)
-        self.ext_off = (info >> 8) & 0xFF
-        self.base, self.ext = split_fmt(ep.fmt(msgid), self.ext_off)
-        self.written = False
-
-    def send(self, link):
-        """Producer: send the last value written; False while there is none."""
-        if not self.written:
-            return False
-        return link.send_payload(self.msgid, self.buf, self.size)
-
-
-class NamedSlot(Slot):
-    """NAMED_VALUE_FLOAT/INT: up to NAMED_VALUES names, sent in turn."""
-
-    def __init__(self, ep, msgid, count=NAMED_VALUES):
-        Slot.__init__(self, ep, msgid)
-        self.bufs = [bytearray(self.size) for _ in range(count)]
-        self.names = [None] * count
-        self.used = 0
-        self.next = 0
-
-    def find(self, name):
-        names = self.names
-        for i in range(self.used):
-            if names[i] == name:
-                return self.bufs[i]
-        if self.used == len(names):
-            return self.bufs[self.used - 1]  # full: the last one is shared
-        names[self.used] = name
-        self.used += 1
-        return self.bufs[self.used - 1]
-
-    def send(self, link):
-        if not self.used:
-            return False
-        i = self.next
-        self.next = i + 1 if i + 1 < self.used else 0
-        return link.send_payload(self.msgid, self.bufs[i], self.size)
 
 
 class Telemetry:
@@ -290,11 +197,11 @@ class Telemetry:
         """GPS_STATUS: the count and up to 20 satellites' prn, used, elevation (deg),
         azimuth (deg * 256 / 360) and snr (dB), each a sequence of small ints."""
         self._gps_status.buf[0] = satellites_visible
-        _bytes20(self._gps_status.buf, 1, prn)
-        _bytes20(self._gps_status.buf, 21, used)
-        _bytes20(self._gps_status.buf, 41, elevation)
-        _bytes20(self._gps_status.buf, 61, azimuth)
-        _bytes20(self._gps_status.buf, 81, snr)
+        put_bytes20(self._gps_status.buf, 1, prn)
+        put_bytes20(self._gps_status.buf, 21, used)
+        put_bytes20(self._gps_status.buf, 41, elevation)
+        put_bytes20(self._gps_status.buf, 61, azimuth)
+        put_bytes20(self._gps_status.buf, 81, snr)
         self._gps_status.written = True
 
     def scaled_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag):
@@ -340,14 +247,14 @@ class Telemetry:
         the dialect has it, RC_CHANNELS with all of them. rssi 0..254, 255 unknown."""
         self.clock.stamp_ms(self._rc_raw.buf, 0)
         self.clock.stamp_ms(self._rc_scaled.buf, 0)
-        _rc8(self._rc_raw.buf, self._rc_scaled.buf, chans)
+        put_rc8(self._rc_raw.buf, self._rc_scaled.buf, chans)
         self._rc_raw.buf[21] = rssi
         self._rc_scaled.buf[21] = rssi
         self._rc_raw.written = self._rc_scaled.written = True
         if self._rc is not None:
             self.clock.stamp_ms(self._rc.buf, 0)
-            off = _put_u16s(self._rc.buf, 4, 40, chans, 0)
-            _fill_u16(self._rc.buf, off, 40, _UNUSED_U16)
+            off = put_u16s(self._rc.buf, 4, 40, chans, 0)
+            fill_u16(self._rc.buf, off, 40, _UNUSED_U16)
             self._rc.buf[40] = (off - 4) >> 1  # chancount
             self._rc.buf[41] = rssi
             self._rc.written = True
@@ -357,12 +264,12 @@ class Telemetry:
         extension) output pulse widths (us); missing ones are sent as 0."""
         b = self._servo.buf
         self.clock.stamp_us32(b, 0)
-        off = _put_u16s(b, 4, 20, outputs, 0)
-        _fill_u16(b, off, 20, 0)
+        off = put_u16s(b, 4, 20, outputs, 0)
+        fill_u16(b, off, 20, 0)
         b[20] = port
         if self._servo.ext is not None:
-            off = _put_u16s(b, 21, 37, outputs, 8)
-            _fill_u16(b, off, 37, 0)
+            off = put_u16s(b, 21, 37, outputs, 8)
+            fill_u16(b, off, 37, 0)
         self._servo.written = True
 
     def nav_controller(self, nav_roll, nav_pitch, nav_bearing, target_bearing, wp_dist,
@@ -435,16 +342,16 @@ class Telemetry:
         b = s.buf
         if self._seed_battery:
             # voltage_cell_1..6, current_battery, accu_id, battery_remaining
-            _cells(b, 0, 12, voltage_mv, cells)
+            put_cells(b, 0, 12, voltage_mv, cells)
             struct.pack_into("<hBb", b, 12, current_ca, battery_id, remaining)
         else:
             struct.pack_into("<iih", b, 0, consumed_mah, energy_hj, temperature)
-            _cells(b, 10, 30, voltage_mv, cells)
+            put_cells(b, 10, 30, voltage_mv, cells)
             # current_battery, id, battery_function and type (unknown), battery_remaining
             struct.pack_into("<hBBBb", b, 30, current_ca, battery_id, 0, 0, remaining)
             if s.ext is not None:
                 struct.pack_into("<iB", b, 36, time_remaining, charge_state)
-                _ext_cells(b, cells)
+                put_ext_cells(b, cells)
         s.written = True
 
     def extended_sys_state(self, vtol_state, landed_state):
@@ -482,65 +389,3 @@ class Telemetry:
         pack_into("<f10s", self._debug_vect.buf, 16, z, name)
         self.clock.stamp_us(self._debug_vect.buf, 0)
         self._debug_vect.written = True
-
-
-# Helpers of few locals (see the module's note on frames).
-def _bytes20(b, off, values):
-    """20 bytes from off: values' (their low bytes), 0 past their end."""
-    i = 0
-    while i < 20:
-        b[off + i] = values[i] & 0xFF if i < len(values) else 0
-        i += 1
-
-
-def _put_u16s(b, off, end, values, k):
-    """values[k], values[k + 1], ... as uint16 from off, up to end or values' end ->
-    the offset after them."""
-    while off < end and k < len(values):
-        pack_into("<H", b, off, values[k])
-        off += 2
-        k += 1
-    return off
-
-
-def _fill_u16(b, off, end, v):
-    """uint16 v from off up to end."""
-    while off < end:
-        pack_into("<H", b, off, v)
-        off += 2
-
-
-def _rc8(raw, scaled, chans):
-    """The first 8 channels into RC_CHANNELS_RAW (us) and _SCALED (1000..2000 us as
-    -10000..10000); those not given are UINT16_MAX and INT16_MAX."""
-    o = 4
-    while o < 20:
-        k = (o - 4) >> 1
-        if k < len(chans):
-            v = chans[k]
-            pack_into("<H", raw, o, v)
-            v = (v - 1500) * 20
-            if v < -10000:
-                v = -10000
-            elif v > 10000:
-                v = 10000
-            pack_into("<h", scaled, o, v)
-        else:
-            pack_into("<H", raw, o, _UNUSED_U16)
-            pack_into("<h", scaled, o, _UNUSED_I16)
-        o += 2
-
-
-def _cells(b, off, end, total_mv, cells):
-    # Unknown cells are UINT16_MAX; without cell voltages the total goes in cell 1.
-    if cells:
-        off = _put_u16s(b, off, end, cells, 0)
-    else:
-        pack_into("<H", b, off, total_mv if total_mv < _UNUSED_U16 else _UNUSED_U16 - 1)
-        off += 2
-    _fill_u16(b, off, end, _UNUSED_U16)
-
-
-def _ext_cells(b, cells):
-    # BATTERY_STATUS's voltages_ext: cells 11..14, 0 for those not given.
-    _fill_u16(b, _put_u16s(b, 41, 49, cells, 10) if cells else 41, 49, 0)
