@@ -39,6 +39,7 @@ _CMD_DO_REPEAT_SERVO = const(184)
 _ACCEPTED = const(0)
 _DENIED = const(2)
 _MSG_SERVO_OUTPUT_RAW = const(36)
+_MSG_NAMED_VALUE_INT = const(252)
 _RELAYS_NAME = b"RELAYS"
 
 
@@ -70,7 +71,7 @@ class Servos:
         for cmd in self._by_id:
             ep.commands[cmd] = self._by_id[cmd]
         tm = getattr(ep, "telemetry", None)
-        if tm is not None and tm._servo is not None:
+        if tm is not None and _MSG_SERVO_OUTPUT_RAW in tm.slots:
             # Whatever the application writes to SERVO_OUTPUT_RAW, the table goes over it.
             self.tm = tm
             self._write_servo = tm.servo_output
@@ -93,7 +94,7 @@ class Servos:
             self.relays &= ~(1 << n)
         if self._set_relay is not None:
             self._set_relay(n, on)
-        if self.tm is not None and self.tm._named_int is not None:
+        if self.tm is not None and _MSG_NAMED_VALUE_INT in self.tm.slots:
             self.tm.named_value_int(_RELAYS_NAME, self.relays)
 
     def set_servo(self, n, us):
@@ -115,7 +116,7 @@ class Servos:
         # Outputs 1-8 at payload offset 4, 9-16 (extensions) at 21, u16 each.
         if self.tm is None:
             return
-        s = self.tm._servo
+        s = self.tm.slots[_MSG_SERVO_OUTPUT_RAW]
         n = self.first
         while n <= self.last:
             if n <= 8:
