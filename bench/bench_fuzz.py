@@ -6,7 +6,6 @@ invariants checked after every batch (tests/fuzz/engine.py, a short run).
 import json
 import os
 import subprocess
-import sys
 import tempfile
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

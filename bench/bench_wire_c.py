@@ -24,7 +24,7 @@ BENCH = os.path.dirname(os.path.abspath(__file__))
 if BENCH not in sys.path:
     sys.path.insert(0, BENCH)
 
-import bench_wire  # noqa: E402
+import wire_streams  # noqa: E402
 
 C_SOURCE = os.path.join(BENCH, "c_ingest.c")
 RUNS = 3
@@ -79,7 +79,7 @@ def c_fps(exe, path, frames):
 def compare(v1_path, v2_path, ours):
     """C's frames/s on both streams and our ratios to them; ours holds our
     ingest_v1_fps and ingest_v2_fps measured in the same run."""
-    frames = bench_wire.FRAMES
+    frames = wire_streams.FRAMES
     with tempfile.TemporaryDirectory() as tmp:
         exe = build(tmp)
         c1 = c_fps(exe, v1_path, frames)
@@ -94,8 +94,8 @@ def compare(v1_path, v2_path, ours):
 
 def run():
     with tempfile.TemporaryDirectory() as tmp:
-        _v1, _v2, v1_path, v2_path = bench_wire.write_streams(tmp)
-        ours = bench_wire.micropython(v1_path, v2_path, False)
+        _v1, _v2, v1_path, v2_path = wire_streams.write_streams(tmp)
+        ours = wire_streams.mpy_wire(v1_path, v2_path, False)
         r = {"ingest_v1_fps": ours["ingest_v1_fps"], "ingest_v2_fps": ours["ingest_v2_fps"]}
         r.update(compare(v1_path, v2_path, ours))
     return r

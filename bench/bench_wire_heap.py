@@ -2,7 +2,7 @@
 with live objects to within 2 KB of full.
 
 The unix port (viper kernels, -X heapsize=256K) runs bench/mpy_heap.py over the 20,000
-mixed v2 frames bench_wire.py uses, read in 4 KiB chunks. Anything the ingest allocates
+mixed v2 frames of wire_streams.py, read in 4 KiB chunks. Anything the ingest allocates
 per frame would, on the full heap, run a collection (marking all the live objects)
 every couple of KB; full_heap_slowdown = empty fps / full fps shows it. The two modes
 run alternately, ROUNDS processes each, and each mode's best counts.
@@ -19,7 +19,7 @@ BENCH = os.path.dirname(os.path.abspath(__file__))
 if BENCH not in sys.path:
     sys.path.insert(0, BENCH)
 
-import bench_wire  # noqa: E402
+import wire_streams  # noqa: E402
 
 DRIVER = os.path.join(BENCH, "mpy_heap.py")
 HEAPSIZE = "256K"
@@ -29,16 +29,16 @@ ROUNDS = 4
 
 def ingest(stream, mode):
     env = dict(os.environ)
-    env["MICROPYPATH"] = bench_wire.FIRMWARE
+    env["MICROPYPATH"] = wire_streams.FIRMWARE
     env.pop("MAVSTACK_PORTABLE", None)
-    p = subprocess.run([bench_wire.MICROPYTHON, "-X", "heapsize=" + HEAPSIZE, DRIVER,
+    p = subprocess.run([wire_streams.MICROPYTHON, "-X", "heapsize=" + HEAPSIZE, DRIVER,
                         stream, mode, str(FREE_BYTES)],
-                       cwd=bench_wire.ROOT, env=env, capture_output=True, text=True, timeout=300)
+                       cwd=wire_streams.ROOT, env=env, capture_output=True, text=True, timeout=300)
     if p.returncode != 0:
         raise RuntimeError("mpy_heap.py %s failed\n%s%s" % (mode, p.stdout, p.stderr))
     got = json.loads(p.stdout.strip().split("\n")[-1])
     assert got["kernels"] == "viper", got
-    assert got["frames"] == bench_wire.FRAMES, got
+    assert got["frames"] == wire_streams.FRAMES, got
     if mode == "full":
         assert 0 < got["free_bytes"] <= FREE_BYTES, got
     return got["fps"]
@@ -46,7 +46,7 @@ def ingest(stream, mode):
 
 def run():
     os.environ.setdefault("MAVLINK20", "1")
-    v2 = bench_wire.pack_stream(2, bench_wire.FRAMES)
+    v2 = wire_streams.pack_stream(2, wire_streams.FRAMES)
     best = {"empty": 0, "full": 0}
     with tempfile.TemporaryDirectory() as tmp:
         stream = os.path.join(tmp, "v2.bin")

@@ -1,7 +1,7 @@
 """Wire layer: machine instructions per frame ingested, counted by callgrind.
 
 The unix port runs bench/mpy_instr.py (viper kernels) under valgrind --tool=callgrind
-twice with the same set-up: once feeding the 20,000 mixed frames bench_wire.py uses,
+twice with the same set-up: once feeding the 20,000 mixed frames of wire_streams.py,
 once feeding none; for the MAVLink 2 stream and the MAVLink 1 one. Instructions per
 frame = (Ir(N) - Ir(0)) / N, Ir being the total in the "summary:" line of callgrind's
 output. Unlike frames/s this does not depend on the machine's load. valgrind is
@@ -21,7 +21,7 @@ BENCH = os.path.dirname(os.path.abspath(__file__))
 if BENCH not in sys.path:
     sys.path.insert(0, BENCH)
 
-import bench_wire  # noqa: E402
+import wire_streams  # noqa: E402
 
 DRIVER = os.path.join(BENCH, "mpy_instr.py")
 
@@ -30,16 +30,16 @@ def instructions(valgrind, stream, feed, tmp):
     """Total Ir of one run of the driver under callgrind; also checks the frames parsed."""
     out = os.path.join(tmp, "callgrind.out.%d" % feed)
     env = dict(os.environ)
-    env["MICROPYPATH"] = bench_wire.FIRMWARE
+    env["MICROPYPATH"] = wire_streams.FIRMWARE
     env.pop("MAVSTACK_PORTABLE", None)
     p = subprocess.run([valgrind, "--tool=callgrind", "--callgrind-out-file=" + out,
-                        bench_wire.MICROPYTHON, "-X", "heapsize=32M", DRIVER, stream, str(feed)],
-                       cwd=bench_wire.ROOT, env=env, capture_output=True, text=True, timeout=600)
+                        wire_streams.MICROPYTHON, "-X", "heapsize=32M", DRIVER, stream, str(feed)],
+                       cwd=wire_streams.ROOT, env=env, capture_output=True, text=True, timeout=600)
     if p.returncode != 0:
         raise RuntimeError("callgrind run failed\n" + p.stdout + p.stderr)
     impl, frames = p.stdout.split()[-2:]
     assert impl == "viper", impl
-    assert int(frames) == (bench_wire.FRAMES if feed else 0), frames
+    assert int(frames) == (wire_streams.FRAMES if feed else 0), frames
     with open(out) as f:
         for line in f:
             if line.startswith("summary:"):
@@ -71,10 +71,10 @@ def run():
         for version in (2, 1):
             stream = os.path.join(tmp, "v%d.bin" % version)
             with open(stream, "wb") as f:
-                f.write(bench_wire.pack_stream(version, bench_wire.FRAMES))
+                f.write(wire_streams.pack_stream(version, wire_streams.FRAMES))
             base = instructions(valgrind, stream, 0, tmp)
             full = instructions(valgrind, stream, 1, tmp)
-            r["ingest_v%d_instr_per_frame" % version] = round((full - base) / bench_wire.FRAMES)
+            r["ingest_v%d_instr_per_frame" % version] = round((full - base) / wire_streams.FRAMES)
     return r
 
 
