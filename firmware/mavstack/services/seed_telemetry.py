@@ -1,24 +1,12 @@
-"""The seed's setpoint echoes as telemetry slots: what the vehicle is steering to.
+"""The seed's setpoint reports, slots the application fills: what the vehicle is steering
+to, in the seed's message set (seed2012) only.
 
-In the seed's message set (seed2012) five messages report the setpoint in force:
-    LOCAL_POSITION_SETPOINT (#51)               local_setpoint(frame, x, y, z, yaw)
-    GLOBAL_POSITION_SETPOINT_INT (#52)          global_setpoint(frame, lat, lon, alt, yaw)
-    ROLL_PITCH_YAW_THRUST_SETPOINT (#58)        attitude_setpoint(roll, pitch, yaw, thrust)
-    ROLL_PITCH_YAW_SPEED_THRUST_SETPOINT (#59)  speed_setpoint(roll_speed, pitch_speed,
-                                                               yaw_speed, thrust)
-    ROLL_PITCH_YAW_RATES_THRUST_SETPOINT (#80)  rates_setpoint(roll_rate, pitch_rate,
-                                                               yaw_rate, thrust)
-Units as the seed gives them: m, rad; 1e7 degrees, mm, centidegrees (yaw of #52);
-rad, rad/s; thrust 0..1. The application fills them (ep.services["seed_telemetry"]) as
-it does the slots of services/telemetry.py, and streams (MAV_CMD_SET_MESSAGE_INTERVAL,
-REQUEST_DATA_STREAM) and REQUEST_MESSAGE send them: a slot never written is not sent.
-Today's common set gave these ids to other messages or dropped them, so a slot exists
-only where the dialect's id is the seed's message (CRC_EXTRA and length agree);
-elsewhere the setters do nothing. Setters pack into the preallocated payload, allocating
-nothing (a 1e7-degree int past 2^30 is the caller's own object on a 32-bit board).
-LOCAL_POSITION_SETPOINT and GLOBAL_POSITION_SETPOINT_INT are also what the inputs
-service echoes a SET_*_SETPOINT into: where it does, the slot is that one (list this
-service after "inputs").
+local_setpoint(), global_setpoint(), attitude_setpoint(), speed_setpoint() and
+rates_setpoint() pack LOCAL_POSITION_SETPOINT, GLOBAL_POSITION_SETPOINT_INT and the three
+ROLL_PITCH_YAW_*_SETPOINT into slots that streams and REQUEST_MESSAGE send. A slot exists
+only where the dialect's id is the seed's message; elsewhere the setters do nothing. Where
+the inputs service echoes a SET_*_SETPOINT into the same message, the slot is that one.
+Reference: docs/services/streams.md.
 """
 from struct import pack_into
 
@@ -59,8 +47,8 @@ class SeedTelemetry:
         self._speed = g(_SPEED)
         self._rates = g(_RATES)
 
-    # Setters stage their values (self._v1..) and a function of few locals packs them:
-    # MicroPython takes a frame state of more than about 11 words from the heap.
+    # Setters stage their values (self._v1..) and a function of few locals packs them
+    # (small frames: see docs/design.md).
     def local_setpoint(self, frame, x, y, z, yaw):
         self._v1 = x
         self._v2 = y
@@ -121,7 +109,7 @@ class SeedTelemetry:
 
 
 def _echo_slot(ep, msgid):
-    """The slot the inputs service (services/inputs.py) already echoes a setpoint into:
+    """The slot the inputs service (inputs/echo.py) already echoes a setpoint into:
     one message, one slot, whether a setpoint or the application wrote it last."""
     inputs = ep.services.get("inputs")
     for r in getattr(inputs, "records", ()):

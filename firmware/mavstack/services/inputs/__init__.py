@@ -1,41 +1,13 @@
-"""Pilot and offboard inputs: what ground stations, joysticks, companion computers and
-HIL simulators send to steer the vehicle, kept for the application to read without
-allocating.
+"""The inputs service: what pilots, joysticks, companion computers and HIL simulators send
+to steer the vehicle, kept for the application to read without allocating.
 
-    inputs = ep.services.get("inputs")        None where the board does not compose it
-    inputs.manual          MANUAL_CONTROL       (ManualInput: x() y() z() r() buttons() ...)
-    inputs.rc              RC_CHANNELS_OVERRIDE (RcOverride: channel(n), overridden(n))
-    inputs.manual_setpoint MANUAL_SETPOINT
-    inputs.position_local  SET_POSITION_TARGET_LOCAL_NED  (PositionTarget)
-    inputs.position_global SET_POSITION_TARGET_GLOBAL_INT (PositionTarget)
-    inputs.attitude        SET_ATTITUDE_TARGET            (AttitudeTarget)
-    inputs.hil_state, inputs.hil_rc, inputs.hil_sensor    HIL_STATE, HIL_RC_INPUTS_RAW, HIL_SENSOR
-    inputs.global_vision, inputs.vision, inputs.vision_speed, inputs.vicon, inputs.flow
-                           GLOBAL_VISION_POSITION_ESTIMATE, VISION_POSITION_ESTIMATE,
-                           VISION_SPEED_ESTIMATE, VICON_POSITION_ESTIMATE, OPTICAL_FLOW
-    the seed's set (--set dialect=seed2012): inputs.seed_local, seed_global, seed_rpyt,
-    seed_rpy_speed, seed_motors, seed_swarm, seed_swarm_led, seed_8dof, seed_6dof
-                           SET_LOCAL_POSITION_SETPOINT, SET_GLOBAL_POSITION_SETPOINT_INT,
-                           SET_ROLL_PITCH_YAW_THRUST, SET_ROLL_PITCH_YAW_SPEED_THRUST,
-                           SET_QUAD_MOTORS_SETPOINT, SET_QUAD_SWARM_(LED_)ROLL_PITCH_YAW_THRUST,
-                           SETPOINT_8DOF, SETPOINT_6DOF
-Each is an input record (inputs_record.py: latest payload, age_ms(), fresh(), sysid,
-compid, link, kind, accessors by wire offset), or None where the dialect lacks the
-message. inputs.record(kind) finds one by its kind (the constants below).
-    inputs.on(kind, fn)      fn(record) on each arrival (after it is stored)
-    inputs.on_input_lost     fn(kind), once, when an input that was arriving has not
-                             arrived for the board's INPUT_TIMEOUT_MS (default 1000)
-    inputs.timeout_ms, inputs.rc_timeout_ms   (RC_OVERRIDE_TIMEOUT_MS, default 3000)
-    inputs.hil               the vehicle is in HIL (status.hil): actuators blocked
-
-Delivery: a message is stored only when addressed to this vehicle (its target system
-and component, where it has them, are ours or 0), and, under operator control
-(services/operator.py), only from the ground station in control. Setpoints are
-answered with POSITION_TARGET_LOCAL_NED / POSITION_TARGET_GLOBAL_INT / ATTITUDE_TARGET
-slots, and in HIL the vehicle reports HIL_CONTROLS (inputs_echo.py).
-
-Heap: records, buffers and handlers are made at start-up; arrival, the accessors, the
-loss check and the echoes allocate nothing (tests/mpy/inputs_steady.py).
+Each message it takes (MANUAL_CONTROL, RC_CHANNELS_OVERRIDE, the SET_*_TARGET setpoints,
+HIL and vision messages; the seed's setpoints) has an input record (record.py) at
+inputs.<name> (KINDS below), None where the dialect lacks it. inputs.on(kind, fn) calls
+fn on each arrival, inputs.on_input_lost(kind) once when an input stops arriving. A
+message is stored only when addressed to this vehicle and, under operator control, sent
+by the station in control. Setpoints are echoed back and, in HIL, HIL_CONTROLS reported
+(echo.py). Reference: docs/services/inputs.md.
 """
 from ...compat import const, ticks_add, ticks_diff
 from . import record as rec

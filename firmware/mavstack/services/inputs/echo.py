@@ -1,17 +1,9 @@
 """What the inputs service sends back: the setpoints it took, and HIL_CONTROLS.
 
-Each setpoint is answered with its target message, a telemetry slot the stream
-scheduler sends and REQUEST_MESSAGE reads (MAVSDK's offboard plugin, QGroundControl
-and PX4's own tools read them): SET_POSITION_TARGET_LOCAL_NED -> POSITION_TARGET_LOCAL_NED,
-SET_POSITION_TARGET_GLOBAL_INT -> POSITION_TARGET_GLOBAL_INT, SET_ATTITUDE_TARGET ->
-ATTITUDE_TARGET; in the seed's message set SET_LOCAL_POSITION_SETPOINT ->
-LOCAL_POSITION_SETPOINT and SET_GLOBAL_POSITION_SETPOINT_INT ->
-GLOBAL_POSITION_SETPOINT_INT. The fields are copied as bytes (no float is made),
-time_boot_ms stamped from the vehicle's clock.
-
-HIL_CONTROLS (#91): while the vehicle is in HIL (status.hil), the controls it would
-drive its actuators with, here the pilot's manual input (roll = y, pitch = x, yaw = r,
-throttle = z, over 1000), written as float32 bits from the integers.
+Each setpoint is answered with its target message (ECHOES below: SET_POSITION_TARGET_*
+-> POSITION_TARGET_*, SET_ATTITUDE_TARGET -> ATTITUDE_TARGET, the seed's two), a slot the
+streams send, its fields copied as bytes. In HIL, HIL_CONTROLS carries the pilot's manual
+input as float32s made from integers. Reference: docs/services/inputs.md.
 """
 from ...kernels import copy
 from ..streams.slots import Slot
@@ -82,8 +74,8 @@ def _zero(b, o, end):
 
 def put_f32_milli(b, o, n):
     """Write n / 1000 as a little-endian float32 at b[o] from integer arithmetic alone
-    (|n| < 2^20): the mantissa by long division, rounded to nearest. (In small
-    functions: each frame stays within what MicroPython keeps off the heap.)"""
+    (|n| < 2^20): the mantissa by long division, rounded to nearest (in small functions:
+    see docs/design.md)."""
     if n == 0:
         _zero(b, o, o + 4)
         return

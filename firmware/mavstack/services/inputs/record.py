@@ -1,25 +1,9 @@
 """One pilot or offboard input as the application reads it: the latest payload, copied
-into a buffer made at start-up, with allocation-free accessors, its age, its sender.
+into a buffer made at start-up, with allocation-free accessors, its age and its sender.
 
-    rec = ep.services["inputs"].manual
-    rec.kind, rec.msgid      the input's kind (inputs.MANUAL ...) and its message id
-    rec.seen                 received at least once (since start-up)
-    rec.age_ms()             ms since the last one arrived; AGE_NEVER when never
-    rec.fresh()              arrived within the board's INPUT_TIMEOUT_MS
-    rec.stamp, rec.stamp_newer(other)   ticks_ms of the last arrival; which came later
-    rec.sysid, rec.compid, rec.link   who sent the last one (its link's index)
-    rec.count                how many were delivered (wraps below 2^30)
-    rec.buf                  the payload as it came (zero-extended to the dialect's length)
-
-Reads by wire offset (the dialect's FMT order): u8 i8 u16 i16 u32 i32 (small ints;
-i32/u32 past +-2^30 are heap ints on a 32-bit board: compare those with
-fields.i32_cmp), milli(off) a float32 field times 1000 as an int (m -> mm, rad ->
-mrad, -1..1 -> -1000..1000), computed from its bits (NaN reads 0, |f| >= 2^20
-saturates at +-(2^30 - 1));
-is_nan(off); f(off) the float itself (a heap object on MicroPython: for code that is
-allowed to allocate, such as the simulator).
-The kinds' own classes (ManualInput, RcOverride, PositionTarget, AttitudeTarget) name
-their fields.
+Input reads any kind's fields by wire offset (u8 ... i32; milli(): a float32 times 1000
+as an int, from its bits); ManualInput, RcOverride, PositionTarget and AttitudeTarget name
+their kinds' fields. Reference: docs/services/inputs.md.
 """
 from struct import unpack_from
 
@@ -50,7 +34,7 @@ class Input:
         self.link = -1
         self.count = 0
         self.callback = None
-        self.echo = None  # an Echo (inputs_echo.py) the input is answered with
+        self.echo = None  # an Echo (echo.py) the input is answered with
 
     # --- arrival (per frame: a few compares and a copy, nothing allocated) ----------
     def deliver(self, link, p):
@@ -144,8 +128,8 @@ def milli(p, o):
 
 def _magnitude(p, o, hi, s):
     # f = m * 2^-s (s >= 4), m of 24 bits: f * 1000 = (m * 1000) >> s, m split into its
-    # top 13 and bottom 11 bits so that no product reaches 2^30. (A function of its own:
-    # few locals, its frame stays off the heap.)
+    # top 13 and bottom 11 bits so that no product reaches 2^30. (A function of its own,
+    # to keep both frames small.)
     mh = (hi & 0x7F | 0x80) << 5 | p[o + 1] >> 3
     ml = (p[o + 1] & 7) << 8 | p[o]
     if s <= 11:
@@ -266,14 +250,13 @@ class PositionTarget(Input):
     """SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT (the same layout): time_boot_ms, then
     the position (local: x y z m; global: lat_int lon_int degE7, alt m), velocity
     (m/s), acceleration (m/s2), yaw (rad), yaw_rate (rad/s), type_mask, frame.
-    *_milli: the float times 1000 (mm, mm/s, mrad); lat_e7/lon_e7 (global): ints
-    (a longitude past +-107 deg is a heap int on a 32-bit board); lon_hi()/lon_lo() and
-    lat_hi()/lat_lo(): the same in 16-bit halves (value = hi * 65536 + lo, hi signed),
-    which never are, for a hot path that takes any longitude (fields.i32_cmp compares
-    them with a bound).
+    *_milli: the float times 1000 (mm, mm/s, mrad); lat_e7/lon_e7 (global): ints (past
+    +-107 deg, 2^30 or more: docs/design.md); lon_hi()/lon_lo() and lat_hi()/lat_lo():
+    the same in 16-bit halves (value = hi * 65536 + lo, hi signed), for a hot path that
+    takes any longitude (fields.i32_cmp compares them with a bound).
     uses_position() / uses_velocity() / uses_accel() / uses_yaw() / uses_yaw_rate():
     the type_mask leaves them in (not all three axes ignored).
-    Inside a safety area only (services/geography.py): a setpoint whose position lies
+    Inside a safety area only (the geography service): a setpoint whose position lies
     outside it is dropped, and told once in a STATUSTEXT."""
 
     geo = None  # the geography service, when the board has one (Inputs.started)

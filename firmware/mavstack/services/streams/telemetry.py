@@ -55,7 +55,7 @@ class Telemetry:
 
     def __init__(self, ep):
         self.ep = ep
-        self.slots = {}
+        self.slots = {}  # msgid -> Slot; public: other services write into one (servos)
         for msgid in MESSAGES:
             if ep.has(msgid):
                 if msgid == _NAMED_VALUE_FLOAT or msgid == _NAMED_VALUE_INT:
@@ -96,11 +96,13 @@ class Telemetry:
         self.voltage_mv = 0xFFFF
         self.current_ca = -1
         self.remaining = -1
-        # The staged values of the setters of six to eight parameters (see _six_floats):
-        # made here, so that storing them later adds no attribute (the heap may be locked).
+        # Setters of six to eight parameters stage their values here and a packer of no
+        # arguments packs them (small frames: docs/design.md; a setter of nine or more
+        # takes its frame from the heap). Made here, so that storing them later adds no
+        # attribute (the heap may be locked).
         self._v1 = self._v2 = self._v3 = self._v4 = self._v5 = self._v6 = self._v7 = self._v8 = 0
 
-    # As ints, for applications and tests (heap objects past 2^30 on a 32-bit board).
+    # As ints, for applications and tests (not for a hot path: see docs/design.md).
     @property
     def uptime_ms(self):
         return self.clock.uptime_ms()
