@@ -80,11 +80,11 @@ class Simulator:
 
     def failsafe(self, reason):
         """An input the vehicle flies by is lost: hold, then return (sim_pilot.py)."""
-        self.pilot.failsafe(reason)
+        self.pilot.failsafe.trip(reason)
 
     def failsafe_clear(self, reason):
         """The lost input is back: no return after the hold."""
-        self.pilot.failsafe_clear(reason)
+        self.pilot.failsafe.clear(reason)
 
     def tick(self, now):
         if self._last is None:

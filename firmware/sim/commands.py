@@ -28,15 +28,34 @@ _MAX_SPEED = 100.0  # m/s: the fastest a reposition may ask for
 
 
 class FlightCommands:
-    """The command handlers of FlightPilot (a mixin: they use its state and its _set_mode,
-    _defer, _refuse)."""
+    """The command handlers of the flight pilot (pilot.FlightPilot, whose state they use,
+    with its set_mode, defer, refuse and flying)."""
+
+    def take_commands(self):
+        """Answer the flight commands, MAVProxy's guided items and the seed's goto."""
+        commands = getattr(self.ep, "commands", None)
+        if commands is not None:
+            commands[22] = self._cmd_takeoff
+            commands[21] = self._cmd_land
+            commands[20] = self._cmd_rtl
+            commands[192] = self._cmd_reposition
+            commands[178] = self._cmd_change_speed
+            commands[17] = self._cmd_loiter
+            commands[193] = self._cmd_pause_continue
+            if self.runner is not None:
+                commands[300] = self._cmd_mission_start  # (in place of the runner's: it flies)
+        if self.missions is not None:
+            self.missions.on_guided = self._guided_item
+        seed = self.ep.services.get("seed_commands")
+        if seed is not None:
+            seed.on_goto = self._cmd_goto  # the seed's OVERRIDE_GOTO to a position
 
     def _cmd_takeoff(self, cmd):
         # param7: metres above home (COMMAND_INT in a global frame: MSL); NaN: MIS_TAKEOFF_ALT.
         if self.status is None or not self.status.armed:
-            return self._refuse(DENIED, "Takeoff: disarmed")
+            return self.refuse(DENIED, "Takeoff: disarmed")
         if self.landed != ON_GROUND:
-            return self._refuse(FAILED, "Takeoff: already flying")
+            return self.refuse(FAILED, "Takeoff: already flying")
         ground = self.mission.ground()
         if not cmd.finite(7):
             alt = self.mission.setting(None, "MIS_TAKEOFF_ALT", 10.0)
@@ -45,16 +64,16 @@ class FlightCommands:
         else:
             alt = cmd.float(7)
         if not 0.5 <= alt <= 10000.0:
-            return self._refuse(DENIED, "Takeoff: altitude %.1f m out of range" % alt)
-        self._set_mode("TAKEOFF")
+            return self.refuse(DENIED, "Takeoff: altitude %.1f m out of range" % alt)
+        self.set_mode("TAKEOFF")
         self.climb_to = ground + alt
         self.ep.statustext(INFO, "Takeoff to %.1f m" % alt)
-        return self._defer(cmd)
+        return self.defer(cmd)
 
     def _cmd_land(self, cmd):
         status = self.status
         if status is None or not status.armed:
-            return self._refuse(DENIED, "Land: disarmed")
+            return self.refuse(DENIED, "Land: disarmed")
         if self.landed == ON_GROUND:
             status.arm(False, True)
             self.ep.statustext(INFO, "Land: on the ground: disarmed")
@@ -62,33 +81,33 @@ class FlightCommands:
         if not self._allowed(cmd):
             return DENIED
         at = self._point(cmd)
-        self._set_mode("LAND")
+        self.set_mode("LAND")
         if at is not None and (at[0] or at[1]):
             self.land_at = (at[0], at[1])
-        return self._defer(cmd)
+        return self.defer(cmd)
 
     def _cmd_rtl(self, cmd):
-        refused = self._flying("RTL")
+        refused = self.flying("RTL")
         if refused is not None:
             return refused
-        self._set_mode("RTL")
+        self.set_mode("RTL")
         return ACCEPTED
 
     def _cmd_reposition(self, cmd):
         # param1 speed (-1: default), param4 yaw (NaN: keep), x/y lat/lon (INT32_MAX: keep), z alt.
-        refused = self._flying("Reposition")
+        refused = self.flying("Reposition")
         if refused is not None:
             return refused
         if cmd.is_int and cmd.frame not in _GLOBAL_FRAMES:
-            return self._refuse(DENIED, "Reposition: frame %d not supported" % cmd.frame)
+            return self.refuse(DENIED, "Reposition: frame %d not supported" % cmd.frame)
         if not self._allowed(cmd):
             return DENIED
         point = self._point(cmd)
         if point is None:
-            return self._refuse(DENIED, "Reposition: position out of range")
+            return self.refuse(DENIED, "Reposition: position out of range")
         speed = min(cmd.float(1), _MAX_SPEED) if cmd.finite(1) and cmd.float(1) > 0 else None
         yaw = cmd.float(4) % 360.0 if cmd.finite(4) else None
-        self._set_mode("GUIDED")
+        self.set_mode("GUIDED")
         self.hold_at, self.guided_speed, self.guided_yaw = point, speed, yaw
         return ACCEPTED
 
@@ -96,18 +115,18 @@ class FlightCommands:
         # The seed's OVERRIDE_GOTO "hold at the specified position" (the seed_commands
         # service checked the area and control): param3 the MAV_FRAME, param4 yaw (deg),
         # param5-7 the position. Flown as a reposition: GUIDED, there, holding.
-        refused = self._flying("Goto")
+        refused = self.flying("Goto")
         if refused is not None:
             return refused
         frame = cmd.int(3) if cmd.finite(3) else 0
         if frame not in _GLOBAL_FRAMES:
-            return self._refuse(DENIED, "Goto: frame %d not supported" % frame)
+            return self.refuse(DENIED, "Goto: frame %d not supported" % frame)
         point = self._point(cmd)
         if point is None:
-            return self._refuse(DENIED, "Goto: position out of range")
+            return self.refuse(DENIED, "Goto: position out of range")
         if cmd.finite(7) and frame in _RELATIVE_FRAMES and not cmd.is_int:  # (_point did COMMAND_INT's)
             point = (point[0], point[1], point[2] + self.mission.home()[2])
-        self._set_mode("GUIDED")
+        self.set_mode("GUIDED")
         self.hold_at, self.guided_speed = point, None
         self.guided_yaw = cmd.float(4) % 360.0 if cmd.finite(4) else None
         return ACCEPTED
@@ -141,41 +160,41 @@ class FlightCommands:
         kind = cmd.float(1) if cmd.finite(1) else 1.0
         speed = cmd.float(2) if cmd.finite(2) else -1.0
         if not self.mission.change_speed(kind, speed):
-            return self._refuse(DENIED, "Speed: %.1f m/s out of range" % speed)
+            return self.refuse(DENIED, "Speed: %.1f m/s out of range" % speed)
         self.guided_speed = None
         return ACCEPTED
 
     def _cmd_loiter(self, cmd):
         # NAV_LOITER_UNLIM: hold here, or at params 5-7 where given.
-        refused = self._flying("Loiter")
+        refused = self.flying("Loiter")
         if refused is not None:
             return refused
         if not self._allowed(cmd):
             return DENIED
         point = self._point(cmd)
         if point is None:
-            return self._refuse(DENIED, "Loiter: position out of range")
+            return self.refuse(DENIED, "Loiter: position out of range")
         if not cmd.is_int and not cmd.float(5) and not cmd.float(6):
             point = (self.sim.lat, self.sim.lon, point[2])  # 0, 0: here
-        self._set_mode("LOITER")
+        self.set_mode("LOITER")
         self.hold_at = point
         return ACCEPTED
 
     def _cmd_pause_continue(self, cmd):
         # param1 0: hold where it is; 1: continue in the mode paused.
         if cmd.finite(1) and cmd.float(1) == 0:
-            refused = self._flying("Pause")
+            refused = self.flying("Pause")
             if refused is not None:
                 return refused
             if self.mode != "LOITER":
                 paused = (self.mode, self.hold_at, self.guided_speed, self.guided_yaw)
-                self._set_mode("LOITER")
+                self.set_mode("LOITER")
                 self.paused_mode = paused
             return ACCEPTED
         if self.paused_mode is None:
-            return self._refuse(DENIED, "Continue: nothing paused")
+            return self.refuse(DENIED, "Continue: nothing paused")
         (mode, hold_at, speed, yaw), self.paused_mode = self.paused_mode, None
-        self._set_mode(mode)
+        self.set_mode(mode)
         if mode == "GUIDED":  # on to where it was going
             self.hold_at, self.guided_speed, self.guided_yaw = hold_at, speed, yaw
         return ACCEPTED
@@ -186,14 +205,14 @@ class FlightCommands:
         if not self.ep.allows(cmd.link):
             return DENIED
         if runner.store.count == 0:
-            return self._refuse(DENIED, "Mission: no mission")
+            return self.refuse(DENIED, "Mission: no mission")
         if self.status is None or not self.status.armed:
-            return self._refuse(DENIED, "Mission: disarmed, arm first")
+            return self.refuse(DENIED, "Mission: disarmed, arm first")
         first = 0 if cmd.nan(1) else cmd.int(1)
         last = -1 if cmd.nan(2) else cmd.int(2)
         if not runner.start(first, last):
-            return self._refuse(DENIED, "Mission: no item %d" % first)
-        self._set_mode("AUTO")
+            return self.refuse(DENIED, "Mission: no item %d" % first)
+        self.set_mode("AUTO")
         return ACCEPTED
 
     def _guided_item(self, link, p, is_int):
@@ -223,6 +242,6 @@ class FlightCommands:
         if not (-90.0 <= x <= 90.0 and -180.0 <= y <= 180.0) or alt != alt:
             self.ep.statustext(WARNING, "Guided: position out of range")
             return _MISSION_DENIED
-        self._set_mode("GUIDED")
+        self.set_mode("GUIDED")
         self.hold_at = (x, y, alt)
         return _MISSION_ACCEPTED

@@ -43,7 +43,7 @@ class MissionPilot(Motion):
         runner = self.missions.runner if self.missions is not None else None
         if runner is None or not runner.run() or runner.waiting or runner.item is None:
             self.sim.target = None
-            self._hold()
+            self.hold()
             return
         item = runner.item
         if item.seq != self._seq or runner.started_ms != self._started:
@@ -52,10 +52,11 @@ class MissionPilot(Motion):
             self._arrived = 0.0
             self._yaw_target = None
             self._wait = None
-            if item.seq == 0:
-                self._changed.clear()  # the mission starts over: speeds from the parameters
+            if item.seq == 0:  # the mission starts over: speeds from the parameters
                 self.sim.roi = None
-            self._settings()
+                self.reset_speeds()
+            else:
+                self.read_speeds()
         if self._do(item, dt):
             runner.reached()
 
@@ -67,7 +68,7 @@ class MissionPilot(Motion):
         if cmd in (16, 17, 18, 19):  # WAYPOINT, LOITER_UNLIM, LOITER_TURNS, LOITER_TIME
             lat, lon, alt = self._position(item)
             radius = item.param2 if cmd == 16 and item.param2 > 0 else self.radius
-            if not self._go(lat, lon, alt, dt, radius):
+            if not self.go(lat, lon, alt, dt, radius):
                 return False
             self._arrived += dt
             if cmd == 16:
@@ -80,38 +81,38 @@ class MissionPilot(Motion):
             return self._arrived >= item.param1
         if cmd == 20:  # RETURN_TO_LAUNCH: home at the current altitude, then down
             lat, lon, alt = self.home()
-            if not self._go(lat, lon, max(sim.alt, alt), dt, self.radius):
+            if not self.go(lat, lon, max(sim.alt, alt), dt, self.radius):
                 return False
-            return self._go(lat, lon, alt, dt, 0.5)
+            return self.go(lat, lon, alt, dt, 0.5)
         if cmd == 21:  # LAND, at the item's position or here; on the ground the pilot disarms
             lat, lon, alt = self._position(item)
-            if not self._go(lat, lon, sim.alt, dt, self.radius):
+            if not self.go(lat, lon, sim.alt, dt, self.radius):
                 return False
             ground = self.home()[2] if math.isnan(item.z) else alt
-            self.touched_down = self._go(lat, lon, ground, dt, 0.2)
+            self.touched_down = self.go(lat, lon, ground, dt, 0.2)
             return self.touched_down
         if cmd == 22:  # TAKEOFF, straight up
-            return self._go(sim.lat, sim.lon, self._position(item)[2], dt, 0.5)
+            return self.go(sim.lat, sim.lon, self._position(item)[2], dt, 0.5)
         if cmd == 112:  # CONDITION_DELAY
-            self._hold()
+            self.hold()
             self._arrived += dt
             return self._arrived >= item.param1
         if cmd == 113:  # CONDITION_CHANGE_ALT, at param1 m/s
             rate = abs(item.param1) or self.climb
-            return self._go(sim.lat, sim.lon, self._position(item)[2], dt, 0.5, climb=rate)
+            return self.go(sim.lat, sim.lon, self._position(item)[2], dt, 0.5, climb=rate)
         if cmd == 114:  # CONDITION_DISTANCE: on toward the next NAV item until that close
             nxt = self.missions.runner.next_nav()
             if nxt is None:
                 return True
             lat, lon, alt = self._position(nxt)
-            return self._go(lat, lon, alt, dt, max(item.param1, self.radius))
+            return self.go(lat, lon, alt, dt, max(item.param1, self.radius))
         if cmd == 115:  # CONDITION_YAW: param1 deg, param2 deg/s, param3 direction, param4 relative
             if self._yaw_target is None:
                 base = math.degrees(sim.heading) if item.param4 == 1 else 0.0
                 sign = -1.0 if item.param4 == 1 and item.param3 < 0 else 1.0
                 self._yaw_target = (base + sign * item.param1) % 360.0
-            self._hold()
-            return self._turn(self._yaw_target, item.param2 or self.turn_rate, dt)
+            self.hold()
+            return self.turn(self._yaw_target, item.param2 or self.turn_rate, dt)
         if cmd == 178:  # DO_CHANGE_SPEED
             self.change_speed(item.param1, item.param2)
             return True
@@ -119,10 +120,10 @@ class MissionPilot(Motion):
             return self._delay(item, dt)
         if cmd == 31:  # NAV_LOITER_TO_ALT: there at the altitude it has, then to the item's
             lat, lon, alt = self._position(item)
-            if self._arrived == 0.0 and not self._go(lat, lon, sim.alt, dt, self.radius):
+            if self._arrived == 0.0 and not self.go(lat, lon, sim.alt, dt, self.radius):
                 return False
             self._arrived += dt
-            return self._go(lat, lon, alt, dt, 0.5)
+            return self.go(lat, lon, alt, dt, 0.5)
         if cmd in (80, 195, 197, 201):
             self._roi(item)
             return True
@@ -155,7 +156,7 @@ class MissionPilot(Motion):
     def _delay(self, item, dt):
         """NAV_DELAY: hold for param1 s, or (param1 -1) until hour:minute:second UTC in
         param2-4 (-1: any hour, any minute)."""
-        self._hold()
+        self.hold()
         if self._wait is None:
             self._wait = item.param1 if item.param1 >= 0 else _until(item.param2, item.param3, item.param4)
         self._arrived += dt
@@ -182,7 +183,7 @@ class MissionPilot(Motion):
                           yaw if math.isnan(item.param2) else item.param2)
         elif cmd == 206:  # DO_SET_CAM_TRIGG_DIST: a photo every param1 m (0: stop), param3 1: one now
             sim.trigger_dist = item.param1 if item.param1 >= 0.1 else 0.0  # (a camera's shortest)
-            self._travel = 0.0
+            self.travel = 0.0
             sim.photos = sim.photos + (1 if item.param3 == 1 and item.param1 > 0 else 0)
         elif cmd == 214:  # DO_SET_CAM_TRIGG_INTERVAL
             sim.trigger_dist = 0.0

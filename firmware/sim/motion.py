@@ -24,8 +24,8 @@ class Motion:
         self.params = ep.services.get("params")
         self.status = ep.services.get("status")
         self._changed = {}  # DO_CHANGE_SPEED's speeds ("speed", "climb", "sink")
-        self._travel = 0.0  # metres flown since the last distance-triggered photo
-        self._settings()
+        self.travel = 0.0  # metres flown since the last distance-triggered photo
+        self.read_speeds()
 
     def setting(self, option, param, default):
         """An option (--set), else the parameter, else the default, as a float."""
@@ -40,7 +40,8 @@ class Motion:
                 pass
         return default
 
-    def _settings(self):
+    def read_speeds(self):
+        """The speeds from the options and parameters, DO_CHANGE_SPEED's over them."""
         self.speed = self.setting("sim_speed", "WP_SPEED", 5.0)
         self.climb = self.setting("sim_climb", "WP_SPEED_UP", 2.5)
         self.sink = self.setting("sim_climb", "WP_SPEED_DN", 1.5)
@@ -50,8 +51,9 @@ class Motion:
             setattr(self, name, value)
 
     def reset_speeds(self):
+        """DO_CHANGE_SPEED's speeds forgotten: the parameters' again."""
         self._changed.clear()
-        self._settings()
+        self.read_speeds()
 
     def change_speed(self, kind, speed):
         """DO_CHANGE_SPEED: kind 0/1 horizontal (air or ground speed), 2 climb, 3 descent;
@@ -59,7 +61,7 @@ class Motion:
         name = ("speed", "speed", "climb", "sink")[int(kind)] if 0 <= kind < 4 else "speed"
         if speed == -2:
             self._changed.pop(name, None)
-            self._settings()
+            self.read_speeds()
         elif 0 < speed < 1e6:  # (a finite speed, whatever a plan says)
             self._changed[name] = speed
             setattr(self, name, speed)
@@ -79,7 +81,7 @@ class Motion:
         return self.home()[2]
 
     # --- motion -------------------------------------------------------------------
-    def _go(self, lat, lon, alt, dt, radius, climb=None, speed=None):
+    def go(self, lat, lon, alt, dt, radius, climb=None, speed=None):
         """Move toward a point for dt seconds -> True once within radius."""
         sim = self.sim
         alt = max(self.ground(), min(alt, self.ground() + CEILING))
@@ -89,7 +91,7 @@ class Motion:
         du = alt - sim.alt
         dist = math.sqrt(dn * dn + de * de)
         if math.sqrt(dist * dist + du * du) <= radius:
-            self._hold()
+            self.hold()
             return True
         speed = speed or self.speed
         step = min(speed * dt, dist)
@@ -101,7 +103,7 @@ class Motion:
             sim.heading = _bearing(sim, sim.roi)  # the nose on the region of interest
         elif dist > 0.5:
             sim.heading = math.atan2(de, dn)
-        self._moved(mn, me, md, dt, step / (speed * dt) if speed > 0 else 0.0)
+        self.moved(mn, me, md, dt, step / (speed * dt) if speed > 0 else 0.0)
         return False
 
     def velocity(self, vn, ve, vd, yaw_rate, dt):
@@ -117,24 +119,24 @@ class Motion:
             vd = 0.0
         sim.heading += yaw_rate * dt
         sim.target = None
-        self._moved(vn * dt, ve * dt, vd * dt, dt, min(1.0, h / self.speed) if self.speed > 0 else 0.0)
+        self.moved(vn * dt, ve * dt, vd * dt, dt, min(1.0, h / self.speed) if self.speed > 0 else 0.0)
 
-    def _moved(self, mn, me, md, dt, speed_share):
+    def moved(self, mn, me, md, dt, speed_share):
         sim = self.sim
         sim.vn, sim.ve, sim.vd = mn / dt, me / dt, md / dt
         if sim.trigger_dist > 0:  # DO_SET_CAM_TRIGG_DIST: a photo every so many metres
-            self._travel += math.sqrt(mn * mn + me * me)
-            if self._travel >= sim.trigger_dist:
-                shots = int(self._travel // sim.trigger_dist)
+            self.travel += math.sqrt(mn * mn + me * me)
+            if self.travel >= sim.trigger_dist:
+                shots = int(self.travel // sim.trigger_dist)
                 sim.photos += shots
-                self._travel -= shots * sim.trigger_dist
+                self.travel -= shots * sim.trigger_dist
         # Lean into the motion: a quadrotor tilts to accelerate and hold speed.
         sim.pitch = -0.25 * speed_share
         sim.roll = 0.0
         sim.throttle = 0.55 + (0.15 if md < 0 else -0.1 if md > 0 else 0.0)
         sim.move(mn, me, md)
 
-    def _turn(self, target_deg, rate, dt):
+    def turn(self, target_deg, rate, dt):
         sim = self.sim
         now = math.degrees(sim.heading) % 360.0
         err = (target_deg - now + 180.0) % 360.0 - 180.0
@@ -145,7 +147,7 @@ class Motion:
         sim.heading = math.radians(now + (turn if err > 0 else -turn))
         return False
 
-    def _hold(self):
+    def hold(self):
         """Stay where it is: hovering in the air, idle (or stopped) on the ground."""
         sim = self.sim
         sim.vn = sim.ve = sim.vd = 0.0

@@ -35,6 +35,7 @@ from mavstack.services.inputs import POSITION_GLOBAL, POSITION_LOCAL
 
 from .commands import (ACCEPTED, DENIED, FAILED, IN_PROGRESS, INFO, PILOT_MODES, WARNING, IN_AIR,
                        LANDING, ON_GROUND, TAKING_OFF, FlightCommands)
+from .failsafe import Failsafe
 from .inputs import PilotInputs
 from .mission import MissionPilot
 from .motion import distance
@@ -63,9 +64,7 @@ class FlightPilot(FlightCommands):
         self.pending = None  # the command still IN_PROGRESS (takeoff, land)
         self.pending_cmd = 0
         self._since_progress = 0.0
-        self.fs_left = None  # seconds of failsafe hold left before RTL
-        self.fs_reason = None
-        self.fs_mode = None  # the mode flown when the input was lost
+        self.failsafe = Failsafe(self)
         self.paused_mode = None  # DO_PAUSE_CONTINUE: (mode, hold_at, speed, yaw) to continue with
         self.landed = ON_GROUND
         self._idle_s = 0.0  # seconds armed on the ground with nothing to do
@@ -83,24 +82,9 @@ class FlightPilot(FlightCommands):
         if status is not None:
             status.flight_mode_check = self._mode_check
             status.arm_check = self._arm_check
-            status.on_gcs_lost = self._gcs_lost
-            status.on_gcs_regained = self._gcs_regained
-        commands = getattr(self.ep, "commands", None)
-        if commands is not None:
-            commands[22] = self._cmd_takeoff
-            commands[21] = self._cmd_land
-            commands[20] = self._cmd_rtl
-            commands[192] = self._cmd_reposition
-            commands[178] = self._cmd_change_speed
-            commands[17] = self._cmd_loiter
-            commands[193] = self._cmd_pause_continue
-            if self.runner is not None:
-                commands[300] = self._cmd_mission_start  # (in place of the runner's: it flies)
-        if self.missions is not None:
-            self.missions.on_guided = self._guided_item
-        seed = self.ep.services.get("seed_commands")
-        if seed is not None:
-            seed.on_goto = self._cmd_goto  # the seed's OVERRIDE_GOTO to a position
+            status.on_gcs_lost = self.failsafe.gcs_lost
+            status.on_gcs_regained = self.failsafe.gcs_regained
+        self.take_commands()
         inputs = self.ep.services.get("inputs")
         if inputs is not None and self.inputs is not None:
             inputs.on(POSITION_LOCAL, self._setpoint_arrived)
@@ -119,7 +103,7 @@ class FlightPilot(FlightCommands):
         if mode != self.mode or self._asked:
             self._asked = False
             self._entered(mode)  # a ground station's change (or the same mode again: afresh)
-        self._failsafe_tick(dt)
+        self.failsafe.tick(dt)
         if status is None or not status.armed:
             self._disarmed(dt)
         elif mode in self._fly:
@@ -132,7 +116,7 @@ class FlightPilot(FlightCommands):
         self._report_progress(dt)
         self._idle_disarm(dt)
 
-    def _set_mode(self, name):
+    def set_mode(self, name):
         """The vehicle's own mode change (a command, a failsafe, a takeoff done)."""
         if self.status is not None:
             self.status.set_flight_mode(name)
@@ -150,7 +134,7 @@ class FlightPilot(FlightCommands):
                                              or self.pending_cmd == 21 and mode == "LAND"):
             self._refuse_pending("interrupted by mode " + mode)
         if mode != "LOITER":
-            self.fs_left = None  # a ground station took over from the failsafe
+            self.failsafe.left = None  # a ground station took over from the failsafe
             self.paused_mode = None
         self.hold_at = (sim.lat, sim.lon, sim.alt)
         self.guided_speed = self.guided_yaw = self.guided_velocity = None
@@ -217,20 +201,20 @@ class FlightPilot(FlightCommands):
             runner.pause()
         sim.target = None
         if sim.alt - m.ground() > _GROUND_M:  # motors stopped in the air
-            m._moved(0.0, 0.0, min(5.0 * dt, sim.alt - m.ground()), dt, 0.0)
+            m.moved(0.0, 0.0, min(5.0 * dt, sim.alt - m.ground()), dt, 0.0)
             sim.throttle = 0.0
         else:
-            m._hold()
+            m.hold()
 
     def _fly_hold(self, dt):
         # LOITER, GUIDED: at (or to) hold_at; on the ground, stays there.
         m = self.mission
         if self.landed == ON_GROUND:
-            m._hold()
+            m.hold()
             return
         lat, lon, alt = self.hold_at
-        if m._go(lat, lon, alt, dt, 0.3, speed=self.guided_speed) and self.guided_yaw is not None:
-            m._turn(self.guided_yaw, m.turn_rate, dt)
+        if m.go(lat, lon, alt, dt, 0.3, speed=self.guided_speed) and self.guided_yaw is not None:
+            m.turn(self.guided_yaw, m.turn_rate, dt)
 
     def _fly_guided(self, dt):
         # GUIDED also takes SET_POSITION_TARGET_* as ArduPilot does (MAVProxy's `position`,
@@ -259,10 +243,10 @@ class FlightPilot(FlightCommands):
     def _fly_takeoff(self, dt):
         sim = self.sim
         lat, lon = self.hold_at[0], self.hold_at[1]
-        if self.mission._go(lat, lon, self.climb_to, dt, 0.3):
+        if self.mission.go(lat, lon, self.climb_to, dt, 0.3):
             self.ep.statustext(INFO, "Takeoff: at %.1f m" % (sim.alt - self.mission.ground()))
             self._finish(ACCEPTED)
-            self._set_mode("LOITER")
+            self.set_mode("LOITER")
 
     def _fly_land(self, dt):
         sim = self.sim
@@ -270,13 +254,13 @@ class FlightPilot(FlightCommands):
         if self.land_at is not None:
             lat, lon = self.land_at
             if distance(sim.lat, sim.lon, lat, lon) > 0.3:
-                m._go(lat, lon, sim.alt, dt, 0.3)
+                m.go(lat, lon, sim.alt, dt, 0.3)
                 return
         self._descend(sim.lat, sim.lon, dt)
 
     def _descend(self, lat, lon, dt):
         m = self.mission
-        if m._go(lat, lon, m.ground(), dt, _GROUND_M) or self.sim.alt - m.ground() <= _GROUND_M:
+        if m.go(lat, lon, m.ground(), dt, _GROUND_M) or self.sim.alt - m.ground() <= _GROUND_M:
             self._touchdown()
 
     def _idle_disarm(self, dt):
@@ -298,7 +282,7 @@ class FlightPilot(FlightCommands):
     def _touchdown(self):
         sim = self.sim
         sim.alt = self.mission.ground()
-        self.mission._hold()
+        self.mission.hold()
         if self.status is not None and self.status.armed:
             self.status.arm(False, True)  # (forced: this is the vehicle's own decision)
             self.ep.statustext(INFO, "Landed: disarmed")
@@ -312,10 +296,10 @@ class FlightPilot(FlightCommands):
             if self.landed == ON_GROUND and distance(sim.lat, sim.lon, lat, lon) <= m.radius:
                 self._touchdown()  # home already, on the ground
                 return
-            if m._go(self.hold_at[0], self.hold_at[1], self.rtl_alt, dt, 0.5):
+            if m.go(self.hold_at[0], self.hold_at[1], self.rtl_alt, dt, 0.5):
                 self.rtl_leg = 1
         elif self.rtl_leg == 1:
-            if m._go(lat, lon, self.rtl_alt, dt, m.radius):
+            if m.go(lat, lon, self.rtl_alt, dt, m.radius):
                 self.rtl_leg = 2
         else:
             self._descend(lat, lon, dt)
@@ -335,7 +319,7 @@ class FlightPilot(FlightCommands):
                 self._touchdown()
             else:
                 self.ep.statustext(INFO, "Mission: complete, holding")
-                self._set_mode("LOITER")
+                self.set_mode("LOITER")
 
     def _fly_pilot(self, dt):
         # STABILIZE, ALT_HOLD, POSITION, OFFBOARD: the pilot's (or offboard computer's) demand.
@@ -347,13 +331,13 @@ class FlightPilot(FlightCommands):
             return
         if demand[0] == "vel":
             if self.landed == ON_GROUND and demand[3] >= 0:
-                m._hold()  # on the ground until the pilot climbs
+                m.hold()  # on the ground until the pilot climbs
             else:
                 m.velocity(demand[1], demand[2], demand[3], demand[4], dt)
         else:
-            m._go(demand[1], demand[2], demand[3], dt, 0.1)
+            m.go(demand[1], demand[2], demand[3], dt, 0.1)
             if demand[4] is not None:
-                m._turn(math.degrees(demand[4]) % 360.0, m.turn_rate, dt)
+                m.turn(math.degrees(demand[4]) % 360.0, m.turn_rate, dt)
         self.hold_at = (sim.lat, sim.lon, sim.alt)
 
     # --- vetoes ---------------------------------------------------------------------------
@@ -379,11 +363,11 @@ class FlightPilot(FlightCommands):
         return None
 
     # --- commands ---------------------------------------------------------------------------
-    def _refuse(self, result, text):
+    def refuse(self, result, text):
         self.ep.statustext(WARNING, text)
         return result
 
-    def _defer(self, cmd):
+    def defer(self, cmd):
         if self.pending is not None:
             self._refuse_pending("superseded")
         self.pending = cmd.defer()
@@ -401,55 +385,10 @@ class FlightPilot(FlightCommands):
         self.ep.statustext(WARNING, name + ": " + why)
         self._finish(FAILED)
 
-    def _flying(self, what):
+    def flying(self, what):
         """None if armed and in the air, else the refusal (MAV_RESULT) with its STATUSTEXT."""
         if self.status is None or not self.status.armed:
-            return self._refuse(DENIED, what + ": disarmed")
+            return self.refuse(DENIED, what + ": disarmed")
         if self.landed == ON_GROUND:
-            return self._refuse(DENIED, what + ": on the ground, take off first")
+            return self.refuse(DENIED, what + ": on the ground, take off first")
         return None
-
-    # --- failsafes --------------------------------------------------------------------------
-    def failsafe(self, reason):
-        """Hold at once, return FS_HOLD_S seconds later unless the input comes back."""
-        status = self.status
-        if status is None or not status.armed or self.landed == ON_GROUND or self.mode in ("RTL", "LAND"):
-            self.ep.statustext(WARNING, "Failsafe: " + reason)
-            return
-        hold = self.mission.setting(None, "FS_HOLD_S", 5.0)
-        mode = self.mode
-        self._set_mode("LOITER")
-        self.fs_left, self.fs_reason, self.fs_mode = hold, reason, mode
-        self.ep.statustext(WARNING, "Failsafe: %s: holding, RTL in %.0f s" % (reason, hold))
-
-    def failsafe_clear(self, reason):
-        if self.fs_left is not None:
-            self.fs_left = None
-            self.ep.statustext(INFO, "Failsafe: %s: holding here" % reason)
-
-    def _failsafe_tick(self, dt):
-        if self.fs_left is None:
-            return
-        inputs = self.inputs
-        if self.fs_mode in PILOT_MODES and inputs is not None and inputs.demand(self.fs_mode, 0.0) is not None:
-            self.failsafe_clear("input back")
-            return
-        self.fs_left -= dt
-        if self.fs_left <= 0:
-            self.fs_left = None
-            self.ep.statustext(WARNING, "Failsafe: %s: returning" % self.fs_reason)
-            self._set_mode("RTL")
-
-    def _gcs_lost(self, link):
-        self.ep.statustext(WARNING, "GCS lost on " + link.name)
-        status = self.status
-        for other in self.ep.links:
-            if status.gcs_present(other):
-                return  # another ground station is still there
-        if self.mission.setting(None, "FS_GCS_ENABLE", 1.0) and self.mode != "AUTO":
-            self.failsafe("GCS lost")
-
-    def _gcs_regained(self, link):
-        self.ep.statustext(INFO, "GCS heard on " + link.name)
-        if self.fs_reason == "GCS lost":
-            self.failsafe_clear("GCS back")
