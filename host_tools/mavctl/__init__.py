@@ -1,7 +1,7 @@
 """mavctl: drive a MAVLink vehicle from the PC over UDP or a serial cable: parameters and
 their files, missions and QGroundControl plans, commands, live telemetry, plots, logs,
-signing, the simulated vehicle on a pty, flashing. One subcommand per run; the plug-in
-convention is in cli.py, the reference in docs/mavctl.md.
+signing, the simulated vehicle on a pty, flashing. One subcommand per run, each from a
+plug-in module (cli.PLUGINS). Reference: docs/mavctl.md.
 """
 import os
 

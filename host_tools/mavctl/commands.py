@@ -1,6 +1,6 @@
 """mavctl's own one-shot subcommands: command, arm/disarm, mode, reboot, stream and ports.
-Registered like any plug-in (see mavctl_cli); `params` and `mission` are mavctl_params and
-mavctl_mission, `watch` is mavctl_watch."""
+Registered like any plug-in (cli.PLUGINS); `params` and `mission` are params.py and
+mission.py, `watch` is watch.py."""
 import math
 import sys
 

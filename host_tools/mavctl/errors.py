@@ -2,7 +2,7 @@
 
 Every mavctl subcommand (and every plug-in module) reports a problem by raising
 Failure(message, status): mavctl prints "mavctl: MESSAGE" on one line and exits with
-the status. Statuses, as documented in `mavctl --help` and the README:
+the status. Statuses, as documented in `mavctl --help` and docs/mavctl.md:
 """
 
 EXIT_OK = 0             # done

@@ -33,7 +33,7 @@ _CONST = re.compile(r"^_?([A-Z][A-Z0-9_]*)\s*=\s*const\((\d+)\)", re.M)
 
 
 class FlashError(Exception):
-    """One line for the user, and mavctl's exit status for it (mavctl_errors)."""
+    """One line for the user, and mavctl's exit status for it (errors.py)."""
 
     def __init__(self, message, status=EXIT_USAGE):
         Exception.__init__(self, message)

@@ -1,6 +1,6 @@
 """`mavctl mission`: upload, download and clear the mission, the geofence and the rally
-points, from and to QGroundControl .plan files (plan_files, all three parts) and QGC WPL 110
-files (mission_files, one part); set the current item."""
+points, from and to QGroundControl .plan files (plan_file.py, all three parts) and QGC WPL 110
+files (mission_file.py, one part); set the current item."""
 import sys
 
 from mavctl.args import group

@@ -7,7 +7,7 @@
 
 read_params(path) -> [(name, value text, MAV_PARAM_TYPE or None, line number)], checked
 line by line (a malformed line is one usage error naming the file and line);
-write_params(path, params, sysid, compid) writes mavctl_vehicle.Param values.
+write_params(path, params, sysid, compid) writes param_protocol.Param values.
 """
 import math
 

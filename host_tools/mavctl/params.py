@@ -1,5 +1,5 @@
 """`mavctl params`: list, get and set parameters; save them to, load them from and compare
-them with QGroundControl .params and MAVProxy .parm files (param_files) or the board's
+them with QGroundControl .params and MAVProxy .parm files (param_file.py) or the board's
 defaults; keep or reload the vehicle's own storage."""
 import fnmatch
 import os

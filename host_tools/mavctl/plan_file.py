@@ -3,7 +3,7 @@ exclusion polygons and circles) and the rally points in one file, and their mapp
 the three MAVLink mission types (0 mission, 1 fence, 2 rally) as lists of Items.
 
     plan = read_plan("route.plan")          # or read_any() for a .plan or a QGC WPL file
-    plan.mission, plan.fence, plan.rally    # [mission_files.Item], ready to upload
+    plan.mission, plan.fence, plan.rally    # [mission_file.Item], ready to upload
     plan.polygons(), plan.circles()         # the fence as shapes: for drawing
     write_plan(plan, "back.plan")
 

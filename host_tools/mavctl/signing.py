@@ -1,16 +1,8 @@
 """`mavctl signing setup PASSPHRASE|--key-file F` and `mavctl signing clear`: give the
 vehicle a MAVLink 2 signing key with SETUP_SIGNING, or take it away (an all-zero key).
-
-The key is the SHA-256 of the passphrase, as MAVProxy's `signing setup` derives it, so
-MAVProxy given the same passphrase talks to the vehicle afterwards. A key file holds 32
-raw bytes, 64 hex digits, or else a passphrase on its first line.
-
-The vehicle's rules (firmware/mavstack/services/signing.py): it takes SETUP_SIGNING only
-on the links its board trusts for it (SIGNING_SETUP_LINKS, e.g. the USB cable rather than
-the radio), and once it has a key only signed with that key: `--current` gives it. It
-answers with the STATUSTEXT "Signing on" / "Signing off" and nothing else, so success is
-proven by what follows: frames from the vehicle that check with the new key (setup), or
-unsigned ones (clear).
+The key is derived as MAVProxy derives it (keys.py). The vehicle answers with a
+STATUSTEXT alone, so success is proven by what follows: frames from the vehicle that
+check with the new key (setup), or unsigned ones (clear). Reference: docs/mavctl.md.
 """
 import sys
 import time

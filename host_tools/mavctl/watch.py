@@ -3,7 +3,7 @@ armed state, position and altitude, battery, GPS, link quality (the radio's RADI
 and the drop rate measured from sequence numbers), the last STATUSTEXTs and the message
 rate table. In a pipe, or with message names given, it prints messages one a line
 (`--view` prints the view once a second instead); `--tlog FILE` records the session as a
-telemetry log (mavctl_tlog)."""
+telemetry log (tlog.py)."""
 import math
 import shutil
 import sys
