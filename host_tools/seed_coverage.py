@@ -4,22 +4,10 @@ the seed (the 2012 common set, firmware/mavstack/dialects/seed2012*.py).
     python host_tools/seed_coverage.py            write docs/seed-coverage.md
     python host_tools/seed_coverage.py --check    exit 1 if the committed table is stale
 
-Nothing in the table is written by hand. It is read from:
-  - the seed dialect: the messages and the MAV_CMD enum, and which ids today's common
-    set gives another meaning (CRC_EXTRA and length differ);
-  - the unix vehicle built on CPython with its board's services and simulator, once per
-    dialect: endpoint._handlers (messages taken), endpoint.producers (messages sent on
-    request and by streams), endpoint.commands (MAV_CMDs handled), and the services'
-    sources for the messages they send as answers (`link.send(_MSG_X)`, `send_payload`);
-  - the mission item rules (services/mission_items.py: the commands a mission may hold);
-  - services/seed_commands.py REASONS: why a command is refused;
-  - the tests: a test names what it proves with a comment `# seed: NAME[, NAME ...]`;
-    without one, the first test that names the message or command (`"NAME"`,
-    `name_send(`, `name_encode(`, `MAVLink_name_message`, `"name"`, a bench frame
-    `.frame(ID`, `MAV_CMD_NAME`, a command's id
-    in a test plan's Item or a run()/command() call; a helper in a test file counts for
-    the test that uses it) is given.
-A row that says "not handled" without a reason makes the generator fail.
+Nothing in the table is written by hand: it is read from the seed dialect, the unix
+vehicle built on CPython (the handlers its services register, its producers and
+commands), the services' sources and the tests. Where each column comes from:
+docs/mavctl.md.
 """
 import ast
 import glob
@@ -53,23 +41,37 @@ def seed_names():
 
 
 def build(dialect, board="unix"):
-    """The board's endpoint in CPython with its services and application -> endpoint."""
+    """The board's endpoint in CPython with its services and application -> endpoint,
+    with `taken`: {msgid: [handler, ...]} its services registered with Endpoint.on."""
     import main
+    from mavstack.endpoint import Endpoint
 
     storage = tempfile.mkdtemp(prefix="seedcov")
     opts = {"links": ["udpin:127.0.0.1:0"], "storage": storage, "sysid": None,
             "options": {"dialect": dialect}}
     if os.environ.get("SEED_COVERAGE_NO_APP"):  # (debugging the tool while the simulator is broken)
         opts["options"]["application"] = "0"
+    taken = {}
+    register = Endpoint.on
+
+    def on(ep, msgid, handler):  # Endpoint.on, noting what each service takes
+        if not register(ep, msgid, handler):
+            return False
+        taken.setdefault(msgid, []).append(handler)
+        return True
+
     out = sys.stdout
     sys.stdout = io.StringIO()  # the build's own report
+    Endpoint.on = on
     try:
         ep, app = main.build(main.load_board(board), opts)
     finally:
+        Endpoint.on = register
         sys.stdout = out
         shutil.rmtree(storage, ignore_errors=True)
     ep.close()
     ep.app = app
+    ep.taken = taken
     return ep
 
 
@@ -132,10 +134,13 @@ def sent_by_sources():
 
 
 def mission_commands():
-    """MAV_CMD ids a mission may hold (services/mission_items.py's rules)."""
-    from mavstack.services.missions import items as mission_items
-
-    rules = mission_items._MISSION_RULES
+    """MAV_CMD ids a mission may hold: the rules of services/missions/items.py, read from
+    its source (_MISSION_RULES: 3 bytes a command, its id little-endian first)."""
+    path = os.path.join(SERVICES_DIR, "missions", "items.py")
+    with open(path, encoding="utf-8") as f:
+        tree = ast.parse(f.read(), path)
+    rules = next(ast.literal_eval(node.value) for node in tree.body if isinstance(node, ast.Assign)
+                 and [getattr(t, "id", None) for t in node.targets] == ["_MISSION_RULES"])
     return {rules[i] | rules[i + 1] << 8 for i in range(0, len(rules), 3)}
 
 
@@ -206,7 +211,7 @@ def message_rows(msgs, eps, sent, tests):
     for msgid, name in msgs.items():
         ep = eps["seed2012"]
         common_too = same_meaning(msgid)
-        ins = sorted({owner(h) for h in ep._handlers.get(msgid, ())})
+        ins = sorted({owner(h) for h in ep.taken.get(msgid, ())})
         outs = []
         if msgid in ep.producers:
             outs.append(producer_owner(ep, ep.producers[msgid]))
