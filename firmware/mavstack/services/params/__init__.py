@@ -1,91 +1,42 @@
-"""Parameter protocol: ground stations list, read, set and store the vehicle's parameters.
+"""The parameter service: ground stations list, read, set and store the vehicle's parameters.
 
-A board (or application) declares its parameters once, as a tuple of rows:
+A board declares its table once (PARAMS: rows of name, type, default, min, max, flags);
+this answers PARAM_REQUEST_LIST, PARAM_REQUEST_READ and PARAM_SET, and
+MAV_CMD_DO_SET_PARAMETER. A list goes out at what the link's budget leaves (link.py's
+RANK_FILL) and continues when asked again; a read or a set is answered at once, or owed
+ahead of the list. A set is checked and always answered with the value in force; a
+refusal also gets PARAM_ERROR and a STATUSTEXT, a change goes out on every link. Each
+link's integers travel in the encoding its ground station reads (PARAM_ENCODING).
+Lists, reads, accepted sets, saves and reloads allocate nothing.
 
-    from mavstack.services.params import REAL32, INT32, UINT8, READ_ONLY, REBOOT
-    PARAMS = (
-        # name (<= 16 chars), MAV_PARAM_TYPE, default, min, max, flags  (min..flags optional)
-        ("WP_SPEED", REAL32, 5.0, 0.5, 30.0),
-        ("FS_GCS_ENABLE", UINT8, 1, 0, 2),
-        ("SERIAL1_BAUD", INT32, 57600, 1200, 921600, REBOOT),
-    )
-
-Any 8/16/32-bit integer type and REAL32. param_value is a 4-byte field, so UINT64,
-INT64 and REAL64 cannot travel and are refused at start-up. Integers travel bytewise
-(MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE, what QGroundControl and MAVSDK expect
-from a generic autopilot), with PARAM_ENCODING = "c_cast" converted to floats (what
-MAVProxy and Mission Planner expect), or with "auto" each link as its ground station
-assumes (see _heard_heartbeat). A PARAM_SET typed REAL32 for an integer parameter is
-a float holding the value in any encoding; refusals also get PARAM_ERROR where the
-dialect has it (MAVSDK's answer to a set or get that failed).
-
-A list goes out at the link budget's RANK_FILL (link.py): whatever HEARTBEAT, the
-answers to ground stations and the telemetry streams leave of the link, so they keep
-flowing and the list takes the rest. A list asked for again while it is going out
-continues (every value still owed is sent once, wrapping to the start) rather than
-starting over, so repeated requests, from one ground station or a flood of them,
-cost one list. A read or a PARAM_SET is answered at once; if the budget cannot pay
-for the answer then, it is owed ahead of the list and sent as soon as it can.
-Lists, reads and their pacing allocate nothing. PARAM_SET is checked (type,
-range, NaN, read-only, operator control) and always answered with the value in force;
-a refusal also gets a STATUSTEXT saying why, a change is sent on every link.
-Values persist in storage file "params" (param_store.py): MAV_CMD_PREFLIGHT_STORAGE
-(param1 1 save, 0 reload, 2/4 defaults) or PARAM_AUTOSAVE_MS after the last change.
-
-Lists, reads, accepted sets, saves and reloads allocate nothing, on 32-bit boards too
-(no value of 2**30 or more is ever a Python int: see param_table.py); the file is
-written from and read into one buffer made at start-up. Refusals and errors format
-their STATUSTEXTs (they are rare); with the heap locked they say less, from a buffer,
-and the answer still goes out.
-
-Application side: `i = params.index("WP_SPEED")` once, then `params.value(i)`;
-`params.get(name)`, `params.set(name, value)`; `params.on_change = f(name, value)`
-hears changes made by ground stations, commands and reloads.
+Parts: table.py (the table), encoding.py (how values travel, per link), store.py (storage).
+Application side: params.index(name) once, then params.value(i); get, set, on_change.
+Reference: docs/services/params.md
 """
-from ...compat import const, ticks_diff
+from ...compat import const
 from ...fields import i16, cstr_len
 from ...kernels import zero
 from ...link import RANK_BULK, RANK_FILL, RANK_AUTO
-from .table import ParamTable, ID_LEN
-from .store import ParamStore, Guard, FILE
-from .table import _copy4, _move, _put16  # byte moves whose frames fit the C stack
-from .table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32, READ_ONLY, REBOOT  # noqa: F401
+from .encoding import LinkEncodings, move, put16
+from .table import ParamTable, ID_LEN, READ_ONLY, REBOOT
+from .table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32  # noqa: F401
 from .table import UINT64, INT64, REAL64  # noqa: F401  (declaring one is an error)
+from .store import ParamStore, Guard, FILE
 
-_MSG_HEARTBEAT = const(0)
 _MSG_PARAM_REQUEST_READ = const(20)
 _MSG_PARAM_REQUEST_LIST = const(21)
 _MSG_PARAM_VALUE = const(22)
 _MSG_PARAM_SET = const(23)
-_MSG_REQUEST_DATA_STREAM = const(66)
-_MSG_COMMAND_INT = const(75)
-_MSG_COMMAND_LONG = const(76)
 _MSG_PARAM_ERROR = const(345)
-_PARAM_ERROR_LEN = const(21)
-
-_CMD_REQUEST_AUTOPILOT_CAPABILITIES = const(520)
-_MAV_TYPE_GCS = const(6)
-_MAVPROXY_COMPID = const(230)  # MAVProxy's own component id (its source_component)
-
-# _casts: a link's encoding ("auto": what its ground station was seen to assume)
-_BYTEWISE = const(0)  # nothing heard yet
-_CAST = const(1)
-_TOLD = const(2)  # bytewise: it asked for AUTOPILOT_VERSION
-_CMD_REQUEST_MESSAGE = const(512)
 
 _CMD_DO_SET_PARAMETER = const(180)
 _CMD_PREFLIGHT_STORAGE = const(245)
 
 _RESULT_ACCEPTED = const(0)
 _RESULT_DENIED = const(2)
-_RESULT_UNSUPPORTED = const(3)
-_RESULT_FAILED = const(4)
 
 _SEVERITY_WARNING = const(4)
 _SEVERITY_NOTICE = const(5)
-
-_CAP_PARAM_ENCODE_BYTEWISE = const(16)
-_CAP_PARAM_ENCODE_C_CAST = const(131072)
 
 # MAV_PARAM_ERROR: what PARAM_ERROR tells the asker (as well as the value in force)
 _ERR_DOES_NOT_EXIST = const(1)
@@ -105,14 +56,13 @@ _UNKNOWN = b"unknown param "
 _TEXT_LEN = const(50)  # STATUSTEXT's text field
 
 
-class Params(ParamStore, ParamTable):
+class Params(ParamStore, LinkEncodings, ParamTable):
     NAME = "params"
 
     def __init__(self, table, encoding="bytewise", autosave_ms=0, sysid_param=None):
         if encoding not in ("bytewise", "c_cast", "auto"):
             raise ValueError("PARAM_ENCODING is 'bytewise', 'c_cast' or 'auto'")
-        # "auto" keeps both forms of every value (the C-cast copy in self._wire) and
-        # answers each link in the encoding its ground station assumes (_heard_*).
+        # "auto" keeps both forms of every value (the C-cast copy in self._wire).
         ParamTable.__init__(self, table, encoding != "bytewise")
         self.auto = encoding == "auto"
         self.autosave_ms = autosave_ms
@@ -127,7 +77,7 @@ class Params(ParamStore, ParamTable):
         self._pending = []
         self._answers = []
         self._cursor = []
-        self._casts = bytearray()  # per link: 1 when its PARAM_VALUEs travel C-cast
+        self._casts = bytearray()  # per link: its encoding (LinkEncodings)
         self._error = 0  # the MAV_PARAM_ERROR of the refusal being answered
         self._text = bytearray(_TEXT_LEN)  # "NAME applies after reboot", made in place
         self._data = self._image  # what _load read the file into
@@ -138,16 +88,8 @@ class Params(ParamStore, ParamTable):
         ep.on(_MSG_PARAM_REQUEST_LIST, self._on_list)
         ep.on(_MSG_PARAM_REQUEST_READ, self._on_read)
         ep.on(_MSG_PARAM_SET, self._on_set)
-        # "auto" tells the ground stations that ask (MAVSDK, QGroundControl) bytewise,
-        # and answers them so (_heard_command).
-        cast = self.c_cast and not self.auto
-        ep.capabilities |= _CAP_PARAM_ENCODE_C_CAST if cast else _CAP_PARAM_ENCODE_BYTEWISE
+        self._watch(ep)
         self._errors = ep.has(_MSG_PARAM_ERROR)  # not in the seed's dialect
-        if self.auto:
-            ep.on(_MSG_HEARTBEAT, self._heard_heartbeat)
-            ep.on(_MSG_REQUEST_DATA_STREAM, self._heard_streams)
-            ep.on(_MSG_COMMAND_LONG, self._heard_command)
-            ep.on(_MSG_COMMAND_INT, self._heard_command)
         ep.commands[_CMD_DO_SET_PARAMETER] = self._do_set_parameter
         # A service attached later that also answers PREFLIGHT_STORAGE (missions: param2)
         # wraps this entry the same way.
@@ -167,7 +109,7 @@ class Params(ParamStore, ParamTable):
             self._pending.append(0)
             self._answers.append(0)
             self._cursor.append(0)
-            self._casts.append(_CAST if self.c_cast and not self.auto else _BYTEWISE)
+            self._new_link_cast()
 
     # --- sending, paced ------------------------------------------------------------
     def tick(self, now):
@@ -175,10 +117,9 @@ class Params(ParamStore, ParamTable):
         for li in range(len(self._pending)):  # a link's index is its place in ep.links
             if self._pending[li]:
                 self._pace(li, links[li], now)
-        if self.dirty and self.autosave_ms and ticks_diff(now, self._changed_at) >= self.autosave_ms:
-            self.save()
+        if self.dirty:
+            self._autosave(now)
 
-    # (Small functions: MicroPython puts a frame with many locals on the heap.)
     def _pace(self, li, link, now):
         sent = 0
         while sent < _MAX_PER_TICK and self._pending[li]:
@@ -229,13 +170,6 @@ class Params(ParamStore, ParamTable):
         self._fill(link.txbuf, link.begin(), i, self._casts[link.index])
         return link.send(_MSG_PARAM_VALUE)
 
-    def _fill(self, buf, off, i, cast):
-        _copy4(buf, off, self._wire if cast == _CAST else self._values, 4 * i)
-        _put16(buf, off + 4, self.count)
-        _put16(buf, off + 6, i)
-        _move(buf, off + 8, self._names, ID_LEN * i, ID_LEN)
-        buf[off + 24] = self._types[i]
-
     def _reply(self, link, i):
         """Answer at once (ranked by its asker: link.py); owed, ahead of any list, when
         the budget cannot pay for it now."""
@@ -270,7 +204,7 @@ class Params(ParamStore, ParamTable):
         self._link_state(link)
         li = link.index
         if not self._pending[li]:
-            self._cursor[li] = 0  # a new list; one going out continues (see the note)
+            self._cursor[li] = 0  # a new list; one going out continues
         want = self._want[li]
         for i in range(self.count):
             if not want[i]:
@@ -282,7 +216,7 @@ class Params(ParamStore, ParamTable):
             return
         i = i16(p, 0)
         if i < 0:  # -1: by name
-            i = self._by_name(p, 4)
+            i = self.find_id(p, 4)
             if i < 0:
                 self._unknown(p, 4)
                 self._error = _ERR_DOES_NOT_EXIST
@@ -298,7 +232,7 @@ class Params(ParamStore, ParamTable):
     def _on_set(self, link, p):
         if not self.ep.for_us(p[4], p[5]):
             return
-        i = self._by_name(p, 6)
+        i = self.find_id(p, 6)
         if i < 0:
             self._unknown(p, 6)
             self._error = _ERR_DOES_NOT_EXIST
@@ -312,11 +246,8 @@ class Params(ParamStore, ParamTable):
         self._announce(i, link)
         self._changed_by_gcs(i)
 
-    # (Small functions: past about 11 words of locals and stack MicroPython takes a
-    # frame from the heap.)
     def _try_set(self, link, i, p):
-        """Take PARAM_SET p into parameter i -> None, else why not (self._error: the
-        MAV_PARAM_ERROR)."""
+        """Take PARAM_SET p into parameter i -> None, else why not (and self._error)."""
         why = self._may_set(link, i, p)
         if why is None:
             why = self._accept_set(link, i, p)
@@ -332,16 +263,13 @@ class Params(ParamStore, ParamTable):
         self._reply(link, i)  # then the value in force, for everyone else
         self._refused(i, why)
 
-    def _by_name(self, p, o):
-        return self.find(p, o, cstr_len(p, o, ID_LEN))
-
     def _may_set(self, link, i, p):
         """None if PARAM_SET p may change parameter i, else why not."""
         why = self._may_change(link, i)
-        if why is None and p[22] != self._types[i] and p[22] != REAL32:
-            # Another integer type: its bytes would be misread.
-            self._error = _ERR_TYPE_MISMATCH
-            why = _type_why(p[22], self._types[i])
+        if why is None:
+            why = self._type_refused(i, p)
+            if why is not None:
+                self._error = _ERR_TYPE_MISMATCH
         return why
 
     def _may_change(self, link, i):
@@ -354,53 +282,9 @@ class Params(ParamStore, ParamTable):
             return "read-only"
         return None
 
-    def _cast_in(self, link, i, p):
-        """Whether PARAM_SET p holds parameter i's value as a float (C-cast) rather than
-        in its type's bytes. Typed REAL32 for an integer parameter it does: the sender
-        declared a float (MAVProxy, pymavlink's param_set_send), and under "auto" its
-        link is answered C-cast from then on. Typed as the parameter, the link's
-        encoding says (REAL32 parameters read as floats either way)."""
-        self._link_state(link)
-        if p[22] != REAL32 or self._types[i] == REAL32:
-            return self._casts[link.index] == _CAST
-        if self.auto:
-            self._casts[link.index] = _CAST
-        return True
-
-    # --- which encoding a link's ground station assumes ("auto") ----------------------
-    # Ground stations do not read the capability bits to decode integers: MAVSDK and
-    # QGroundControl go bytewise for any autopilot but ArduPilot, MAVProxy and pymavlink's
-    # mavparm C-cast for any but PX4. What a station does tells them apart, and the last
-    # sign heard on a link decides: asking for AUTOPILOT_VERSION (MAVSDK, QGroundControl:
-    # told bytewise), REQUEST_DATA_STREAM (ArduPilot's convention: MAVProxy, Mission
-    # Planner) or a PARAM_SET typed REAL32 for an integer parameter (C-cast). Before any
-    # of these, a ground station heartbeat from MAVProxy's component id makes the link
-    # C-cast (MAVProxy lists parameters before it sends anything else); otherwise it is
-    # bytewise until one is heard.
-    def _heard_heartbeat(self, link, p):
-        if p[4] == _MAV_TYPE_GCS and link.rx.compid == _MAVPROXY_COMPID:
-            self._link_state(link)
-            if self._casts[link.index] == _BYTEWISE:
-                self._casts[link.index] = _CAST
-
-    def _heard_streams(self, link, p):
-        if self.ep.for_us(p[2], p[3]):
-            self._link_state(link)
-            self._casts[link.index] = _CAST
-
-    def _heard_command(self, link, p):
-        """COMMAND_LONG / COMMAND_INT (command at 28, param1 at 0): a request for
-        AUTOPILOT_VERSION (REQUEST_MESSAGE 148, REQUEST_AUTOPILOT_CAPABILITIES)."""
-        c = p[29] << 8 | p[28]
-        if c == _CMD_REQUEST_AUTOPILOT_CAPABILITIES or (c == _CMD_REQUEST_MESSAGE and _is_148(p)):
-            if self.ep.for_us(p[30], p[31]):
-                self._link_state(link)
-                self._casts[link.index] = _TOLD
-
     def _deny(self, link, p, o, i):
         """PARAM_ERROR self._error to the asker on link (where the dialect has it): the
-        name as sent at p[o:], index i (-1: asked by name). Made in place, in frames
-        small enough for the C stack: a refusal costs no heap."""
+        name as sent at p[o:], index i (-1: asked by name). Made in place: no heap."""
         if self._errors:
             d = self._error_head(link, i)
             _name_into(link.txbuf, d, p, o)
@@ -410,7 +294,7 @@ class Params(ParamStore, ParamTable):
         """PARAM_ERROR's fields but the name: index, target (the asker), error."""
         buf = link.txbuf
         d = link.begin()
-        _put16(buf, d, i & 0xFFFF)
+        put16(buf, d, i & 0xFFFF)
         buf[d + 2] = link.rx.sysid
         buf[d + 3] = link.rx.compid
         buf[d + 20] = self._error
@@ -435,40 +319,11 @@ class Params(ParamStore, ParamTable):
         self._changed_by_gcs(i)
         return _RESULT_ACCEPTED
 
-    def _preflight_storage(self, cmd):
-        result = _RESULT_ACCEPTED
-        if not cmd.nan(1):
-            result = self.persist(cmd.int(1), cmd.link)
-        if self._storage_next is not None:
-            other = self._storage_next(cmd)
-            if result == _RESULT_ACCEPTED:
-                result = other
-        return result
-
-    def persist(self, action, link=None):
-        """PREFLIGHT_STORAGE param1: 0 reload, 1 save, 2 and 4 defaults -> MAV_RESULT."""
-        if action == 1:
-            return _RESULT_ACCEPTED if self.save() else _RESULT_FAILED
-        if action != 0 and action != 2 and action != 4:
-            # 3 resets sensor calibration only: there is none here.
-            return _RESULT_UNSUPPORTED if action == 3 else _RESULT_DENIED
-        if link is not None and not self.ep.allows(link):
-            return _RESULT_DENIED
-        if action == 0:
-            return _RESULT_ACCEPTED if self._load(False) else _RESULT_FAILED
-        self._take(self._defaults, False)
-        self.ep.statustext(_SEVERITY_NOTICE, b"params reset to defaults")
-        return _RESULT_ACCEPTED
-
-    # Refusals and errors: a STATUSTEXT each. Formatting allocates; where the heap may be
-    # locked (the emulated boards run so), a MemoryError there gets a plainer text made
-    # in self._text instead, so the vehicle carries on and the refusal is still answered.
+    # Refusals and errors: a STATUSTEXT each, formatted (it allocates) or, where the heap
+    # is locked, a plainer text made in self._text: the refusal is still answered.
     def _unknown(self, p, o):
-        # Made in the text buffer (and in small frames: past about 11 words of locals
-        # and stack MicroPython takes a frame from the heap), so a ground station asking
-        # for names this vehicle lacks costs it no heap.
-        text = self._text
-        _move(text, 0, _UNKNOWN, 0, len(_UNKNOWN))
+        text = self._text  # made here: names this vehicle lacks cost it no heap
+        move(text, 0, _UNKNOWN, 0, len(_UNKNOWN))
         zero(text, _shown(text, len(_UNKNOWN), p, o), _TEXT_LEN)
         self.ep.statustext(_SEVERITY_WARNING, text)
 
@@ -486,14 +341,6 @@ class Params(ParamStore, ParamTable):
             text = self._named_text(i, b" not set")
         self.ep.statustext(_SEVERITY_WARNING, text)
 
-    def _say(self, severity, fmt, arg, plain):
-        """STATUSTEXT fmt % arg, or plain (bytes) if that cannot be made."""
-        try:
-            text = fmt % arg
-        except MemoryError:
-            text = plain
-        self.ep.statustext(severity, text)
-
     def _changed_by_gcs(self, i):
         if not self.changed:
             return
@@ -506,40 +353,15 @@ class Params(ParamStore, ParamTable):
     def _named_text(self, i, tail):
         """Parameter i's name and tail, as a STATUSTEXT made in a buffer (NUL-padded)."""
         n = self._lens[i]
-        _move(self._text, 0, self._names, ID_LEN * i, n)
-        _move(self._text, n, tail, 0, len(tail))
+        move(self._text, 0, self._names, ID_LEN * i, n)
+        move(self._text, n, tail, 0, len(tail))
         zero(self._text, n + len(tail), _TEXT_LEN)
         return self._text
 
-    def _touch(self):
-        self.dirty = True
-        self._changed_at = self.ep.now
-
-    def _take(self, values, saved):
-        """A whole set of values (reload, defaults): sent and reported where changed."""
-        if not self.adopt(values):
-            return
-        mark = self._mark
-        for i in range(self.count):
-            if mark[i]:
-                self._announce(i)
-        if not saved:
-            self._touch()
-        if self.on_change is not None:
-            self._report()
-
-    def _report(self):
-        """on_change for every value adopt() changed (allocates: names, values)."""
-        for i in range(self.count):
-            if self._mark[i]:
-                self.on_change(self.name(i), self.value(i))
-
     # --- application -----------------------------------------------------------------
     def set(self, name, value):
-        """Set from the application (read-only ones too); sent on every link.
-
-        True if the value changed; ValueError when it may not take that value.
-        """
+        """Set from the application (read-only ones too); sent on every link -> changed.
+        ValueError when it may not take that value."""
         i = self.index(name)
         if self.put(i, value) and self.ep is not None:
             self._touch()
@@ -548,8 +370,7 @@ class Params(ParamStore, ParamTable):
 
 
 def _shown(dst, d, p, o):
-    """The NUL-padded name at p[o] into dst from d, '?' for what cannot be shown -> the
-    end of it in dst."""
+    """The name at p[o] into dst from d, '?' for what cannot be shown -> its end in dst."""
     n = cstr_len(p, o, ID_LEN)
     k = 0
     while k < n:
@@ -559,20 +380,8 @@ def _shown(dst, d, p, o):
     return d + n
 
 
-def _is_148(p):
-    """param1 (p[0:4]) is 148.0, AUTOPILOT_VERSION's id, as a float."""
-    return p[0] == 0 and p[1] == 0 and p[2] == 0x14 and p[3] == 0x43
-
-
 def _name_into(buf, d, p, o):
-    _move(buf, d, p, o, ID_LEN)
-
-
-def _type_why(got, want):
-    try:
-        return "type %d, expected %d" % (got, want)
-    except MemoryError:  # the heap is locked
-        return "wrong type"
+    move(buf, d, p, o, ID_LEN)
 
 
 def create(ep):

@@ -1,11 +1,14 @@
-"""Parameters in storage: the file "params" written new and renamed over the old one,
-read back at start-up and on PREFLIGHT_STORAGE 0 (a part of services/params.Params).
+"""Parameters in storage, a part of Params: the file "params", PREFLIGHT_STORAGE and
+whole sets of values taken (a reload, the defaults).
 
-The file image itself (header, records by name, checksum) is param_table.py's; this is
-the file work around it, in frames small enough for MicroPython's C stack, so a save or
-a reload asks the heap for nothing.
+The file is written new and renamed over the old one, and read back at start-up and on
+PREFLIGHT_STORAGE 0; its image (records by name, checksummed) is table.py's. A save or a
+reload asks the heap for nothing: the file goes through one buffer made at start-up,
+under a Guard instead of try.
+
+Reference: docs/services/params.md
 """
-from ...compat import const
+from ...compat import const, ticks_diff
 
 FILE = "params"
 
@@ -14,9 +17,40 @@ _SEVERITY_WARNING = const(4)
 _SEVERITY_NOTICE = const(5)
 _SEVERITY_INFO = const(6)
 
+_RESULT_ACCEPTED = const(0)
+_RESULT_DENIED = const(2)
+_RESULT_UNSUPPORTED = const(3)
+_RESULT_FAILED = const(4)
+
 
 class ParamStore:
-    """Save and load for Params (which has the table, self.ep, self._guard, _say, _take)."""
+    """Storage for Params (which has the table, self.ep, self._guard, self.dirty,
+    self.autosave_ms and _announce)."""
+
+    def _preflight_storage(self, cmd):
+        result = _RESULT_ACCEPTED
+        if not cmd.nan(1):
+            result = self.persist(cmd.int(1), cmd.link)
+        if self._storage_next is not None:
+            other = self._storage_next(cmd)
+            if result == _RESULT_ACCEPTED:
+                result = other
+        return result
+
+    def persist(self, action, link=None):
+        """PREFLIGHT_STORAGE param1: 0 reload, 1 save, 2 and 4 defaults -> MAV_RESULT."""
+        if action == 1:
+            return _RESULT_ACCEPTED if self.save() else _RESULT_FAILED
+        if action != 0 and action != 2 and action != 4:
+            # 3 resets sensor calibration only: there is none here.
+            return _RESULT_UNSUPPORTED if action == 3 else _RESULT_DENIED
+        if link is not None and not self.ep.allows(link):
+            return _RESULT_DENIED
+        if action == 0:
+            return _RESULT_ACCEPTED if self._load(False) else _RESULT_FAILED
+        self._take(self._defaults, False)
+        self.ep.statustext(_SEVERITY_NOTICE, b"params reset to defaults")
+        return _RESULT_ACCEPTED
 
     def save(self):
         """Write every value to storage "params", atomically -> success."""
@@ -97,14 +131,50 @@ class ParamStore:
         else:
             self._say(_SEVERITY_WARNING, "params not reloaded: %s", why, b"params not reloaded")
 
+    def _touch(self):
+        """A value changed: dirty, saved PARAM_AUTOSAVE_MS from now if that is set."""
+        self.dirty = True
+        self._changed_at = self.ep.now
+
+    def _autosave(self, now):
+        if self.autosave_ms and ticks_diff(now, self._changed_at) >= self.autosave_ms:
+            self.save()
+
+    def _take(self, values, saved):
+        """A whole set of values (reload, defaults): sent and reported where changed."""
+        if not self.adopt(values):
+            return
+        mark = self._mark
+        for i in range(self.count):
+            if mark[i]:
+                self._announce(i)
+        if not saved:
+            self._touch()
+        if self.on_change is not None:
+            self._report()
+
+    def _report(self):
+        """on_change for every value adopt() changed (allocates: names, values)."""
+        for i in range(self.count):
+            if self._mark[i]:
+                self.on_change(self.name(i), self.value(i))
+
+    def _say(self, severity, fmt, arg, plain):
+        """STATUSTEXT fmt % arg, or plain (bytes) if that cannot be made."""
+        try:
+            text = fmt % arg
+        except MemoryError:
+            text = plain
+        self.ep.statustext(severity, text)
+
 
 class Guard:
     """`with guard:` around work on a storage file: an OSError raised in the block ends
     there, kept in guard.error, and guard.file, if the block left one open, is closed.
 
-    It is what try/except OSError as e and try/finally would do, but with frames that
-    fit on the C stack (MicroPython takes bigger ones from the heap, on every save), and
-    without the file's own __exit__ (RamFile's takes *exc: a tuple on every call).
+    It is what try/except OSError as e and try/finally would do, in frames small enough
+    for the C stack (docs/design.md, "Function frames"), and without the file's own
+    __exit__ (RamFile's takes *exc: a tuple on every call).
     """
 
     def __init__(self):
