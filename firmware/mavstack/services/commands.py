@@ -1,28 +1,13 @@
 """Command protocol: COMMAND_LONG and COMMAND_INT through one dispatch table.
 
 Handlers live in endpoint.commands {MAV_CMD id: handler(cmd) -> MAV_RESULT}; any
-service or the application adds entries, by id or by seed name (handle()).
-Every command addressed to us gets exactly one final COMMAND_ACK, sent to its sender
-in the same poll; a handler that needs time returns IN_PROGRESS, keeps
-`cmd.defer()` and finishes through it.
-
-Retries, as the command protocol defines them: a ground station that has not seen the
-ACK sends the command again with `confirmation` one higher. So a COMMAND_LONG with
-confirmation > 0 that matches the command just answered (same sender sysid and compid,
-command and parameters) within _RETRY_WINDOW_MS of its ACK gets that ACK again (and the
-message it asked for) without a second run; confirmation 0 is a new command and always
-runs, even if the same bytes came a moment ago: the vehicle may have changed in between
-(PARAM_SET, then the same PREFLIGHT_STORAGE save again must save again). COMMAND_INT has
-no confirmation field, so it always runs. Whatever its confirmation, a command identical
-to one still IN_PROGRESS (deferred) is that command: IN_PROGRESS again, never a second
-run. A refused command is simply evaluated again. Commands that must not take effect
-twice are idempotent themselves (arming when armed changes nothing, a reboot already
-pending keeps its time).
-
-A handler that answers with a message (REQUEST_MESSAGE, GET_HOME_POSITION, ...)
-sets `cmd.reply = msgid`: the message's producer (endpoint.producers) runs right
-after the ACK, so the ground station sees the ACK first, as the command protocol
-describes. Built in here: MAV_CMD_REQUEST_MESSAGE (512) for every producer.
+service or the application adds entries, by id or by seed name (handle()). Every
+command addressed to us gets exactly one final COMMAND_ACK, sent to its sender in the
+same poll; a handler that needs time returns IN_PROGRESS and finishes through
+cmd.defer(). A retry (confirmation one higher, within 3 s) gets its ACK again without a
+second run. A handler may set cmd.reply: that message follows the ACK. Built in here:
+MAV_CMD_REQUEST_MESSAGE (512) for every producer.
+Reference (the Command API, retries, the built-in commands): docs/services/commands.md.
 """
 import struct
 
@@ -132,8 +117,8 @@ class _Guard:
     """guard.run(handler, cmd): what the handler returned, or FAILED if it raised an
     Exception, which is then kept in guard.error (None otherwise).
 
-    A with statement on itself rather than try/except ... as e: that makes a frame
-    state MicroPython takes from the heap on every call (over about 11 words).
+    A with statement on itself rather than try/except ... as e, which would make a large
+    frame on every call (docs/design.md).
     """
 
     def __init__(self):
@@ -191,9 +176,7 @@ class Commands:
             command = command_id(command)
         self.handlers[command] = handler
 
-    # The per-command path is in small functions with few locals: MicroPython takes a
-    # frame state of more than about 11 words (locals plus value stack; a try adds
-    # three, or six with `as e`) from the heap on every call.
+    # The per-command path is in small functions with few locals (docs/design.md).
     def _on_long(self, link, p):
         self._run(link, p, False)
 
@@ -282,7 +265,7 @@ class Commands:
         if not all_links:
             producer(link)
             return
-        i = 0  # (by index: a for loop's iterator is four more words of frame state)
+        i = 0  # (by index: see docs/design.md)
         while i < len(self.ep.links):
             producer(self.ep.links[i])
             i += 1
@@ -301,7 +284,7 @@ class Commands:
     def ack(self, to, result, progress, result_param2):
         """COMMAND_ACK to the sender of `to` (the Command being handled, or a Pending:
         its link, command, sysid and compid), field by field: packed whole, its values
-        would make a frame state MicroPython takes from the heap on every call."""
+        would make a large frame (docs/design.md)."""
         off = to.link.begin()
         buf = to.link.txbuf
         buf[off] = to.command & 0xFF
