@@ -1,61 +1,13 @@
 """MAVLink 2 message signing (SETUP_SIGNING #256 and the 13-byte frame signature).
 
 With a secret key set, every frame that arrives must carry a valid signature and a
-timestamp newer than the last one seen from its stream (sender sysid, compid and the
-signature's link id); others are dropped before any service sees them. Unsigned
-frames pass only for the ids in SIGNING_ALLOW_UNSIGNED (HEARTBEAT by default) and
-RADIO_STATUS, which radios inject without a key. Every frame sent is signed, with the
-link's index as link id; links that negotiate their version speak MAVLink 2 from then on
-(links fixed to MAVLink 1 stay unsigned). An all-zero key turns signing off, and with it off
-nothing in the parser or encoder changes.
-
-Board settings:
-    SIGNING_SETUP_LINKS     None: SETUP_SIGNING accepted on any link; else a tuple of
-                            link indices (the links a key may be given on, e.g. USB)
-    SIGNING_ALLOW_UNSIGNED  message ids accepted unsigned, default (0,) (HEARTBEAT)
-    SIGNING_SAVE_MS         how often the timestamp is saved while signing (60000, at
-                            least 1000)
-    SIGNING_MAX_AHEAD_MS    with the time of day known, frames stamped further ahead of
-                            our timestamp are refused (60000, at most 5 minutes)
-
-The key persists in storage file "signing_key": key (32), timestamp (8, little-endian:
-the promise below), CRC-16 of both (2). A corrupt file leaves signing off and says so in
-a STATUSTEXT.
-List "signing" before "status" in SERVICES: then the boot HEARTBEAT is signed too.
-
-Timestamps (units of 10 us since 2015-01-01, so always past 2^30) are 48-bit and kept
-as 6 little-endian bytes, as on the wire: compared by 24-bit halves and advanced
-bytewise, never made into an int (on a 32-bit port an int of 2^30 or more is a heap
-object). Verifying and signing frames and the clock allocate nothing, nor does a save
-beyond what the storage's own open and write take. The timestamp sent rises by one per
-frame and follows the clock: the endpoint clock's time of day when known (re-read every
-10 s), else the stored timestamp plus uptime; it also takes any accepted frame's that is
-ahead of it, as the signing spec asks.
-
-Replays across a restart. The stream table is lost with the RAM, so what is stored is a
-promise: no timestamp above it was accepted or sent. It is renewed a save interval
-ahead of need (stored = timestamp + 2 intervals, saved again once the timestamp is within
-an interval of it); a frame accepted above it (a ground station ahead of us) is saved
-before it is let through. A commanded reboot or shutdown stores the timestamp itself
-(stop(): when it is accepted, and by main.py at the end), so that ground stations go on
-at once. At boot the stored value becomes both our timestamp and a floor: a newly heard
-stream's first frame must be newer than it (and, as the spec says, no more than a minute
-behind our timestamp). So no frame accepted before a restart, or older than one, is
-accepted after it. After a power loss the floor may be up to two intervals ahead of the
-wall clock: ground stations that take the vehicle's timestamp when it is ahead (the
-spec's rule; pymavlink and the MAVLink C library do) are in again with the first signed
-frame they hear from it.
-
-Frames from the future. Once the vehicle knows the time of day, a frame stamped more
-than a minute (SIGNING_MAX_AHEAD_MS) ahead of our timestamp (which is at least the time
-of day) is refused (counter `future`): taken, it would move our timestamp and the floor
-it becomes after a restart so far ahead that every ground station stamping from the wall
-clock would be refused as a stream "more than a minute behind" (the spec's new-stream
-rule), and accepted without being taken, it would be replayable after a restart. A
-ground station within the minute is taken as the spec says. Without a time of day the
-vehicle cannot tell a clock that is ahead from one that is right, and follows the spec.
-
-Counters: accepted, bad_signature, replayed, future, unsigned (frames dropped per reason).
+timestamp newer than the last one from its stream, or be one of the few ids allowed
+unsigned; every frame sent is signed. An all-zero key turns signing off, and with it off
+nothing in the parser or encoder changes. Timestamps are 6 little-endian bytes, never an
+int. What is stored (storage file "signing_key") is a promise: no timestamp above it was
+accepted or sent, so no frame from before a restart is accepted after it. Verifying,
+signing and the clock allocate nothing.
+Reference (settings, the key, restarts, frames from the future): docs/services/signing.md.
 """
 from ..compat import const, ticks_add, ticks_diff
 from ..kernels import copy
@@ -94,8 +46,7 @@ class _LinkSigner:
 class Signing:
     NAME = "signing"
 
-    # Per-frame methods are split small: a MicroPython function whose locals and value
-    # stack pass 11 words gets its frame from the heap.
+    # Per-frame methods are split small (docs/design.md).
     def __init__(self, setup_links=None, allow_unsigned=(0,), save_ms=60000, max_ahead_ms=60000):
         self.setup_links = setup_links
         self.allow_unsigned = tuple(allow_unsigned) + (_MSG_RADIO_STATUS,)
