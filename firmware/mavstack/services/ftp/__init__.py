@@ -1,33 +1,12 @@
 """MAVLink FTP: ground stations list, read, write and remove files in the storage folder.
 
-FILE_TRANSFER_PROTOCOL (#110 of the common dialect) as the MAVLink FTP service defines
-it, served over the vehicle's storage folder with the rules of ftp_files.py (nothing
-outside it, never the stack's own files, FTP_SPACE). "/" is the folder itself.
-Opcodes: ListDirectory, OpenFileRO, ReadFile, BurstReadFile, CreateFile, WriteFile,
-TerminateSession, ResetSessions, RemoveFile, CalcFileCRC32; any other is NAKed
-UnknownCommand. Errors are the protocol's NAK codes: a full store is FailErrno with
-ENOSPC, a protected file FileProtected, a path that leaves the folder Fail; refusals
-also get a STATUSTEXT saying why.
-
-Sessions: FTP_SESSIONS open files (4), each under the session number the ground station
-asked with (MAVProxy routes replies by it; pymavlink takes whatever comes back). A
-CreateFile or OpenFileRO under a number already open closes the old file first.
-
-Retries: every reply carries the request's sequence number plus one; a request that
-repeats the last one byte for byte (a retry: its reply was lost) gets the same reply
-again without running twice, so a CreateFile retried after its ACK was lost does not
-empty the file again. BurstReadFile is the exception: a repeat restarts the burst.
-A burst streams FTP_BURST_PACKETS replies (sequence numbers counting on) from tick(),
-as the link's budget lets them go (at the streams' rank); the last has burst_complete.
-
-Reading and writing an open file (ReadFile, BurstReadFile, WriteFile) and answering
-allocate nothing: the request, the reply and the burst each have a buffer made at
-start-up, and files are read into and written from memoryviews of them. Opening,
-listing, removing and checksumming are rare events: they open a locked heap
-(compat.heap_open) for their moment.
-
-The seed's own file transfer (FILE_TRANSFER_START / _DIR_LIST / _RES, the same ids in
-the seed2012 dialect) is ftp_seed.py; create() attaches whichever the dialect has.
+FILE_TRANSFER_PROTOCOL (#110 of the common dialect) served over the vehicle's storage
+folder with the rules of files.py. This module is the per-packet path: reads, writes,
+bursts (from tick(), at the streams' rank) and a repeated request answered again without
+running twice; all of it allocates nothing. The rare events (open, create, list, remove,
+checksum) are rare.py's, with the heap open. The seed's own file transfer (the same ids
+in the seed2012 dialect) is seed.py; create() attaches whichever the dialect has.
+Reference (opcodes, errors, sessions, retries, bursts): docs/services/ftp.md.
 """
 from ...compat import const
 from ...kernels import copy, zero
@@ -61,7 +40,7 @@ _CRC32 = const(14)
 _BURST = const(15)
 _ACK = const(128)
 _NAK = const(129)
-# Answered by ftp_rare.py, with the heap open:
+# Answered by rare.py, with the heap open:
 _RARE = const((1 << _TERMINATE) | (1 << _RESET) | (1 << _LIST) | (1 << _OPEN_RO) | (1 << _CREATE)
               | (1 << _REMOVE) | (1 << _CRC32))
 
@@ -129,8 +108,7 @@ class Ftp(FtpRare):
         self.folder = Folder(root, self._protected, self._space)
         ep.on(_MSG_FTP, self._on_request)
 
-    # --- per packet (allocation-free; small functions: MicroPython puts a frame of more
-    # than about 11 words on the heap) ------------------------------------------------
+    # --- per packet (allocation-free; small functions: docs/design.md) ------------------
     def _on_request(self, link, p):
         if not self.ep.for_us(p[1], p[2]) or self._repeat(link, p):
             return
@@ -208,7 +186,7 @@ class Ftp(FtpRare):
         self._reply[_DATA + 1] = errno
 
     def _offset(self, b):
-        """The offset field of buffer b, -1 past 2^30 (a 32-bit board's small ints)."""
+        """The offset field of buffer b, -1 from 2^30 on (past the small ints: docs/design.md)."""
         if b[_OFFSET + 3] >= 0x40:
             return -1
         return b[_OFFSET] | b[_OFFSET + 1] << 8 | b[_OFFSET + 2] << 16 | b[_OFFSET + 3] << 24

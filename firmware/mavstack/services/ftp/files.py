@@ -1,26 +1,19 @@
-"""The storage folder as the file services (ftp.py, ftp_seed.py) show it to ground stations.
-
-One set of rules for both protocols:
-- a path names a file under the folder; `..`, a NUL, a backslash or a symbolic link
-  anywhere on the way is refused (a link could lead out of the folder), so nothing
-  outside it is ever reached;
-- the stack's own files (parameters, mission/fence/rally slots, the signing key, and
-  their `.new` copies) are neither listed, read, written nor removed: PROTECTED, plus
-  a board's FTP_PROTECTED names;
-- FTP_SPACE (bytes, 0: no limit) caps what the folder's files other than the stack's
-  own may hold together, so files sent by ground stations never take the room parameter
-  and mission saves need; a write past it, or a file system that is full, is "no space".
+"""The storage folder as the file services (ftp/__init__.py, ftp/seed.py) show it to
+ground stations, with one set of rules for both protocols: nothing outside the folder is
+reached (`..`, links and the like are refused), the stack's own files (PROTECTED, plus a
+board's FTP_PROTECTED) are never served, and FTP_SPACE caps what the other files hold.
 
 Everything here runs on rare events (opening, listing, removing, checksumming a file)
 and may allocate; the callers open a locked heap around it (compat.heap_open). Reading
 and writing an open file (read_into, write_from) allocate nothing.
+Reference: docs/services/ftp.md.
 """
 import os
 
 from ...compat import MICROPYTHON
 
-# Files of params.py (param_store.FILE), missions.py (_NAMES: NAME.0, NAME.1) and
-# signing.py (_FILE), by the part of their name before the first dot.
+# Files of params (params/store.py's FILE), missions (their _NAMES: NAME.0, NAME.1) and
+# signing (signing.py's _FILE), by the part of their name before the first dot.
 PROTECTED = ("params", "mission", "fence", "rally", "signing_key")
 
 OK = 0

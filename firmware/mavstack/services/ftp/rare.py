@@ -1,8 +1,9 @@
 """MAVLink FTP's rare events: opening, creating, listing, removing and checksumming
-files, closing and resetting sessions (ftp.py answers the rest).
+files, closing and resetting sessions (ftp/__init__.py answers the rest).
 
-They allocate (paths are strings, files are objects, listings are lists), so ftp.py
-runs them with the heap open (compat.heap_open) even on a board that locked it.
+They allocate (paths are strings, files are objects, listings are lists), so they run
+with the heap open (compat.heap_open) even on a board that locked it.
+Reference: docs/services/ftp.md.
 """
 import os
 
@@ -38,7 +39,8 @@ _WARNING = const(4)
 
 
 class FtpRare:
-    """The rare half of ftp.Ftp (a mixin: it works on Ftp's buffers and sessions)."""
+    """The rare half of Ftp (ftp/__init__.py; a mixin: it works on Ftp's buffers and
+    sessions)."""
 
     def _rare_event(self, op):
         depth = heap_open()

@@ -1,34 +1,13 @@
 """The seed's file transfer: FILE_TRANSFER_START / _DIR_LIST / _RES (#110-#112, seed2012).
 
-A small file service over the storage folder, with the rules of ftp_files.py and the
-seed's result codes: 0 OK, 1 not permitted (the stack's own files, a ground station not
-in control, a file too large for the protocol), 2 bad path / file name (`..`, an absolute
-path, a link, no such file), 3 no space (FTP_SPACE or the file system full).
-
-The seed defines the three messages but no data message, so data travels in their
-240-byte path fields, and `flags` (reserved in the seed) numbers the chunks. Every
-chunk is 240 bytes but the last; file_size says how many bytes the last one holds, so
-files are binary-safe for a client that reads the raw field. Each transfer has the
-requester's transfer_uid on every message of it; FILE_TRANSFER_RES is its final word.
-
-- List: DIR_LIST(uid, dir_path, flags=K). The vehicle sends DIR_LIST(uid, text, flags=k)
-  for k = K, K+1, ... of the listing, then RES(uid, 0). The text is a line per entry:
-  "F<name>\\t<size>\\n" for a file, "D<name>\\n" for a folder. A chunk lost on the way is
-  asked for again with flags = its number.
-- Read (direction 1, "to requester"): START(uid, 0, path, 1, flags=K). The vehicle sends
-  START(uid, file_size, chunk k, 1, k) for k = K ... (one, empty, for an empty file),
-  then RES(uid, 0).
-- Write (direction 0, "from requester"): START(uid, file_size, path, 0, 0) asks; the
-  vehicle echoes START(uid, file_size, "", 0, 0) when it takes it, else RES(uid, code).
-  Then START(uid, file_size, chunk k, 0, k + 1) for each chunk, each echoed back
-  (START(uid, file_size, "", 0, k + 1)) once written, in any order, repeats harmless.
-  When every chunk is in, the file replaces the old one atomically (written to NAME.new,
-  then renamed) and RES(uid, 0) follows. At most 255 chunks: 61,200 bytes.
-
-(The seed's Chinese translation reads direction the other way round; the English text,
-which the XML carries, decides here.) One outgoing transfer (a listing or a read) and
-one incoming (a write) run at a time; a new one replaces the old. Chunks go out from
-tick() as the link's budget lets them, at the streams' rank.
+A small file service over the storage folder, with the rules of files.py and the seed's
+result codes (0 OK, 1 not permitted, 2 bad path, 3 no space). The seed defines no data
+message, so data travels in 240-byte chunks in the path fields, numbered in `flags`,
+every message of a transfer carrying its transfer_uid; FILE_TRANSFER_RES is its final
+word. A write (up to 255 chunks) replaces the file atomically once every chunk is in.
+One outgoing transfer (a listing or a read) and one incoming (a write) at a time; chunks
+go out from tick() at the streams' rank.
+Reference (the exchange, message by message): docs/services/ftp.md.
 """
 import os
 
@@ -356,7 +335,7 @@ def _same_uid(uid, p):
 
 def _u32(b, o):
     if b[o + 3] >= 0x40:
-        return 0x3FFFFFFF  # past 2^30: a 32-bit board's small ints stop there (and it is too big)
+        return 0x3FFFFFFF  # from 2^30 on (past the small ints: docs/design.md), and too big
     return b[o] | b[o + 1] << 8 | b[o + 2] << 16 | b[o + 3] << 24
 
 
