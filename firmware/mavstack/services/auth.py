@@ -1,20 +1,13 @@
 """AUTH_KEY (#7): the key that identifies a system, only ever over a signed link.
 
-The seed: "Emit an encrypted signature / key identifying this system ... transmitting
-the key requires an encrypted channel for true safety." The channel here is a signed
-MAVLink 2 link (services/signing.py: a secret key set, the frame's signature checked):
-    - the vehicle's own key (board setting AUTH_KEY, up to 32 characters) is its
-      AUTH_KEY message, sent on request (MAV_CMD_REQUEST_MESSAGE 7) or by a stream, and
-      only on a link that signs what it sends; a request over an unsigned link is DENIED
-      and nothing is sent;
-    - an AUTH_KEY that arrives identifies its sender: accepted only in a signed frame,
-      it is kept as that link's (`keys[link.index]`), `known[link.index]` says whether it
-      is one of the board's AUTH_KEYS_ACCEPTED (a tuple; None accepts any), a STATUSTEXT
-      says which ("AUTH_KEY accepted" / "AUTH_KEY not known"), and the application's
-      handler sees it: on_key(link, payload). An unsigned one is refused,
-      with a STATUSTEXT, and forgotten.
+The seed asks for an encrypted channel; here it is a signed MAVLink 2 link
+(services/signing.py). The vehicle's own key (board setting AUTH_KEY) is sent on request
+or by a stream only on a link that signs what it sends (a request over an unsigned link
+is DENIED); an AUTH_KEY that arrives is taken only in a signed frame, kept as that
+link's (`keys`, `known` against AUTH_KEYS_ACCEPTED) and handed to on_key(link, payload).
 Without signing on, no AUTH_KEY goes out and none is taken. Nothing is allocated per
 message: the keys live in buffers made at start-up.
+Reference: docs/services/seed.md.
 """
 from ..compat import const
 from ..kernels import copy

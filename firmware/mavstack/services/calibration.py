@@ -3,19 +3,12 @@
 Calibrating sensors and setting their offsets is the board's business, so both
 commands go to the application's handler:
     ep.services["calibration"].handler = handler(cmd) -> MAV_RESULT
-(cmd as services/commands.py hands it: cmd.int(i), cmd.float(i), cmd.defer() for a
-calibration that takes time: return IN_PROGRESS, report with progress() and finish with
-done()). PREFLIGHT_CALIBRATION: param1 gyro, param2 magnetometer, param3 ground
-pressure, param4 radio, param5 accelerometer, param6 compass/motor interference,
-param7 airspeed (1: calibrate, 0: not); PREFLIGHT_SET_SENSOR_OFFSETS: param1 the sensor
-(0 gyro, 1 accelerometer, 2 magnetometer, 3 absolute pressure, 4 differential pressure,
-5 GPS, 6 optical flow), param2-7 its offsets.
-
-Built in, before the handler: the sender must be in control (operator control) and
-the vehicle disarmed (a calibration moves the estimates the vehicle flies by):
-otherwise DENIED, with a STATUSTEXT. The documented default without a handler is
-UNSUPPORTED with a STATUSTEXT: a board with nothing to calibrate has nothing to do.
-The simulated vehicle's handler is firmware/sim_seed.py.
+(cmd as services/commands.py hands it; cmd.defer() for a calibration that takes time).
+Built in, before the handler: the sender must be in control and the vehicle disarmed
+(a calibration moves the estimates the vehicle flies by): otherwise DENIED, with a
+STATUSTEXT. Without a handler: UNSUPPORTED with a STATUSTEXT (nothing to calibrate).
+The simulated vehicle's handler is firmware/sim/seed.py.
+Reference (the commands' parameters): docs/services/seed.md.
 """
 from ..compat import const
 from ..statustext import WARNING

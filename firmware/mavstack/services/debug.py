@@ -3,13 +3,10 @@
 A companion computer or a ground station's script may send these to the vehicle. Each
 one is handed, as it came, to the application's handler:
     ep.services["debug"].handler = handler(link, msgid, payload)
-with the payload in the dialect's layout (NAMED_VALUE_FLOAT #251: time_boot_ms, value,
-name[10]; NAMED_VALUE_INT #252: time_boot_ms, int32 value, name[10]; DEBUG #254:
-time_boot_ms, value, ind; DEBUG_VECT #250: time_usec, x, y, z, name[10]; MEMORY_VECT
-#249: address, ver, type, value[32]). Without a handler they are counted (`received`,
-per id in `last`) and the last of each kept in `last_payload` for a look afterwards.
-These messages carry no target: every one heard is delivered. Outbound the same ids
-are telemetry slots (services/telemetry.py). Delivery allocates nothing.
+They are counted (`received`), the last one's id and payload kept (`last`,
+`last_payload`). These messages carry no target: every one heard is delivered.
+Outbound the same ids are telemetry slots (services/streams/telemetry.py). Delivery
+allocates nothing. Reference (the payloads' layouts): docs/services/seed.md.
 """
 from ..compat import const
 from ..kernels import copy

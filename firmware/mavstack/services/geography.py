@@ -1,42 +1,10 @@
 """Where the vehicle is allowed to be: the GPS global origin and the safety area.
 
-SET_GPS_GLOBAL_ORIGIN (#48) sets the origin of the local frame: it is kept (storage
-file "geography", with the area) and answered with GPS_GLOBAL_ORIGIN (#49) on every
-link when it changes, and on request (MAV_CMD_REQUEST_MESSAGE 49, streams).
-SAFETY_SET_ALLOWED_AREA (#54) sets the box the vehicle may fly in (two corners, in a
-global frame: degrees and metres; or in a local one: metres), kept likewise and answered
-with SAFETY_ALLOWED_AREA (#55). A box of six zeros clears it. Both need the sender to
-address us (target 0 or ours) and to be in control (operator control); a refusal is told
-in a STATUSTEXT (these messages have no acknowledgement of their own).
-
-The area is enforced through this service's API, for the others:
-    geo = ep.services["geography"]
-    geo.allows(lat_e7, lon_e7, alt_mm)   True inside the area (or without one); alt_mm
-                                         None: the altitude is not checked
-    geo.allows_local(x_m, y_m, z_m)      the same in the local frame (a local area)
-    geo.allows_degrees(lat, lon, alt_m)  the same from degrees and metres (a simulator)
-    geo.allows_command(cmd[, frame])     a command's target (param5-7, COMMAND_LONG or
-                                         _INT): False, with a STATUSTEXT, when outside;
-                                         the caller answers DENIED (reposition, goto)
-    geo.check_target(p, is_global)       a SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT
-                                         payload: False when its position is outside (the
-                                         inputs service then drops it; one STATUSTEXT a run)
-    geo.check_item(rec, frame)           a mission record (mission_store.py's layout) ->
-                                         0, or MAV_MISSION_INVALID_PARAM5_X / _PARAM6_Y /
-                                         _PARAM7 for the coordinate that is outside
-    geo.area_set, geo.origin_set         what has been given; geo.origin() the origin
-An altitude is compared as the frame gives it (MSL or relative, NED z for a local
-area): the area's z and the target's are taken to be in the same sense.
-
-LOCAL_POSITION_NED_SYSTEM_GLOBAL_OFFSET (#89) is a telemetry slot: the application
-calls geo.local_offset(x, y, z, roll, pitch, yaw) and streams or REQUEST_MESSAGE send
-it. STATE_CORRECTION (#64, the seed's set only) is handed to the application:
-geo.on_state_correction = handler(link, payload), the payload's nine float32 errors
-(xErr, yErr, zErr, rollErr, pitchErr, yawErr, vxErr, vyErr, vzErr) as they came.
-
-Allocation-free on a 32-bit board: the bounds are int32 bytes (1e7 degrees, or metres
-* 1e4 for local x/y and every z) made from the float32 fields by mission_items.fix,
-compared by 16-bit halves; a save opens the heap only for the storage's own moment.
+SET_GPS_GLOBAL_ORIGIN and SAFETY_SET_ALLOWED_AREA are kept (storage file "geography")
+and told back on change and on request. The other services check targets against the
+area through this one (allows..., check_target, check_item), by int32 bytes compared by
+16-bit halves, allocating nothing. Also the LOCAL_POSITION_NED_SYSTEM_GLOBAL_OFFSET slot
+and the seed's STATE_CORRECTION. Reference: docs/services/seed.md.
 """
 import struct
 from struct import pack_into
@@ -106,7 +74,7 @@ class Geography:
         if ep.has(_MSG_SAFETY_ALLOWED_AREA):
             ep.producers[_MSG_SAFETY_ALLOWED_AREA] = self._area_m
         if ep.has(_MSG_LOCAL_OFFSET):
-            from .streams.telemetry import Slot
+            from .streams.telemetry import Slot  # loaded only for the slot: RAM
 
             self._slot = Slot(ep, _MSG_LOCAL_OFFSET)
             ep.producers[_MSG_LOCAL_OFFSET] = self._slot.send
@@ -156,11 +124,8 @@ class Geography:
                            None if alt_m is None else int(round(alt_m * 1000)))
 
     def allows_command(self, cmd, frame=-1):
-        """Is the position of a COMMAND_LONG / COMMAND_INT (param5-7: x, y, z in the
-        command's frame; COMMAND_LONG's frame given as `frame`, else global) inside the
-        area? A refusal is told in a STATUSTEXT; the caller answers DENIED. Unset x/y
-        (NaN, or COMMAND_INT's 0/INT32_MAX) mean "here" and pass. Makes floats: for
-        commands, not for setpoints at rate (allows() there)."""
+        """Is a command's position (param5-7 in its frame; COMMAND_LONG's as `frame`, else
+        global) inside the area? False with a STATUSTEXT. Makes floats: not for setpoints."""
         if not self.area_set:
             return True
         f = cmd.frame if cmd.is_int else (frame if frame >= 0 else 0)
@@ -180,10 +145,8 @@ class Geography:
         return ok
 
     def check_target(self, p, is_global):
-        """A position setpoint inside the area (or not checked: no area, the position
-        ignored by type_mask, a frame relative to the vehicle)? Per frame at the
-        setpoint rate: its x, y, z go into a mission record's places and check_item
-        decides, allocating nothing."""
+        """A position setpoint inside the area (or not checked)? Its x, y, z go into a
+        mission record's places and check_item decides, allocating nothing."""
         if not self.area_set or p[48] & 7 == 7:  # type_mask: x, y and z ignored
             return True
         frame = p[52]
@@ -208,8 +171,7 @@ class Geography:
 
     def check_item(self, rec, frame):
         """A mission record's position against the area -> 0 or the MAV_MISSION_RESULT
-        naming the coordinate outside it. Items in the other kind of frame (local items
-        against a global area and the reverse) and unset coordinates pass."""
+        naming the coordinate outside it (other frames' items and unset ones pass)."""
         if not self.area_set or (frame in LOCAL_FRAMES) != self.area_local:
             return 0
         b = self._bounds
@@ -359,7 +321,7 @@ class Geography:
         save_sealed(storage, _FILE, self._file)
 
 
-# Helpers of few locals (a frame state past about 11 words comes from the heap).
+# Helpers of few locals (docs/design.md).
 def _between(b, o, hi, lo):
     """bounds b[o] (min) <= hi:lo <= b[o + 4] (max)."""
     return i32_cmp(b, o, hi, lo) <= 0 and i32_cmp(b, o + 4, hi, lo) >= 0

@@ -1,34 +1,13 @@
 """The seed's remaining MAV_CMDs, as immediate commands (COMMAND_LONG / COMMAND_INT).
 
-    OVERRIDE_GOTO (252)     param1 0 MAV_GOTO_DO_HOLD / 1 MAV_GOTO_DO_CONTINUE; param2
-                            2 hold where the vehicle is / 3 at the position param5-7
-                            (frame param3, yaw param4). Hold: the board's LOITER mode
-                            (the mission runner pauses, `held` is True); continue: back
-                            to AUTO, the mission goes on where it stopped. A position
-                            outside the allowed area (services/geography.py) is DENIED;
-                            one inside goes to the application: on_goto(cmd) ->
-                            MAV_RESULT (default UNSUPPORTED: flying to a point is the
-                            application's guided flight).
-    NAV_ROI (80)            param1 MAV_ROI (0 none, 1 next waypoint, 2 waypoint param2,
-                            3 location param5-7, 4 target param3): kept (`roi` the
-                            mode, `roi_params` the command's param1-4, x, y, z bytes,
-                            `roi_int` COMMAND_INT's form) and handed to on_roi(cmd)
-                            if the application has it; ACCEPTED; a mode beyond 4 DENIED.
-    NAV_PATHPLANNING (81)   the application's path planner: on_pathplanning(cmd);
-                            default UNSUPPORTED (no planner on board).
-    DO_CONTROL_VIDEO (200)  the application's camera: on_video(cmd); default
-                            UNSUPPORTED (no camera).
-    CONDITION_DELAY, _CHANGE_ALT, _DISTANCE, _YAW (112-115)
-                            mission items: the runner hands them to the application
-                            as they become current (services/mission_runner.py; the
-                            simulator flies them). As an immediate command there is no
-                            mission step to hold, so UNSUPPORTED, with a STATUSTEXT.
-    NAV_LAST (95), CONDITION_LAST (159), DO_LAST (240)
-                            markers that bound the NAV / CONDITION / DO id ranges, no
-                            commands: UNSUPPORTED, with a STATUSTEXT.
-Every command here that changes the vehicle needs the sender in control (operator
-control): else DENIED with a STATUSTEXT. REASONS gives the table's words for the
-refused ones (host_tools/seed_coverage.py reads it).
+OVERRIDE_GOTO (252) holds (LOITER) and continues (AUTO), a position inside the allowed
+area going to the application's on_goto; NAV_ROI (80) is kept and handed to on_roi;
+NAV_PATHPLANNING (81) and DO_CONTROL_VIDEO (200) go to the application (on_pathplanning,
+on_video; UNSUPPORTED without). CONDITION_* (112-115) are mission items and the *_LAST
+markers no commands: UNSUPPORTED, with a STATUSTEXT. Every command here that changes
+the vehicle needs the sender in control. REASONS gives the coverage table's words for
+the refused ones (host_tools/seed_coverage.py reads it).
+Reference (each command's parameters): docs/services/seed.md.
 """
 from ..compat import const
 from ..kernels import copy

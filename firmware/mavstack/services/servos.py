@@ -1,26 +1,10 @@
 """Relays and servos: the seed's DO_SET_RELAY / DO_REPEAT_RELAY / DO_SET_SERVO /
-DO_REPEAT_SERVO drive a board's relay and servo table.
-
-    DO_SET_RELAY (181)     param1 relay (0..RELAYS-1), param2 1 on / 0 off
-    DO_REPEAT_RELAY (182)  param1 relay, param2 cycles, param3 cycle time (s): the relay
-                           is toggled, half a cycle at a time, then left as it was
-    DO_SET_SERVO (183)     param1 servo output (SERVO_CHANNELS), param2 pulse width (us)
-    DO_REPEAT_SERVO (184)  param1 servo, param2 pulse width, param3 cycles, param4 cycle
-                           time (s): between that width and SERVO_NOMINAL, then nominal
-In a mission, the application hands such an item to do_item(item) as the runner makes
-it current. A repeat runs in tick(), never blocking; one relay repeat and one servo repeat at a time
-(a new one replaces the one running, and a SET of the same output stops it). The
-sender must be in control (operator control); outputs out of the table, widths out of
-SERVO_RANGE, cycle counts below 1 or times not above 0 are DENIED, with a STATUSTEXT.
-
-Board settings: RELAYS (count, default 0: no relays), SERVO_CHANNELS ((first, last)
-output numbers the table drives, default None: no servos), SERVO_NOMINAL (us, 1500),
-SERVO_RANGE ((min, max) us, (800, 2200)), and the profile's set_relay(n, on) and
-set_servo(n, us), if it has them, for the hardware. The table is there to read
-(`relays`, a bit a relay; `servo(n)`); where telemetry is on (streams), the relays go out
-as NAMED_VALUE_INT "RELAYS" (a bit each) and the servo table in SERVO_OUTPUT_RAW, over
-what the application writes there (the unix vehicle's motors are outputs 1-4, its table
-5-16; the seed's SERVO_OUTPUT_RAW has 8 outputs, so there only 5-8 show).
+DO_REPEAT_SERVO (181-184) drive a board's relay and servo table (board settings RELAYS,
+SERVO_CHANNELS, SERVO_NOMINAL, SERVO_RANGE; the profile's set_relay / set_servo for the
+hardware). Repeats run in tick(), one relay and one servo repeat at a time; mission
+items of these commands come through do_item(item). The sender must be in control. Where streams run,
+the relays go out as NAMED_VALUE_INT "RELAYS" and the table in SERVO_OUTPUT_RAW.
+Reference (the commands' parameters, settings, telemetry): docs/services/seed.md.
 """
 from ..compat import const, ticks_diff
 from ..fields import i32
@@ -136,7 +120,7 @@ class Servos:
     # --- commands ----------------------------------------------------------------------
     def do_item(self, item):
         """A mission's DO_SET_RELAY / DO_REPEAT_RELAY / DO_SET_SERVO / DO_REPEAT_SERVO
-        (services/mission_runner.py's Item; its record holds param1-4 where COMMAND_LONG
+        (services/missions/runner.py's Item; its record holds param1-4 where COMMAND_LONG
         does) carried out as the command would be -> MAV_RESULT, None for another item.
         The application calls it as the runner makes such an item current."""
         handler = self._by_id.get(item.command)
@@ -256,8 +240,8 @@ class Servos:
 
 def _half_cycle_ms(cmd, count, time, scratch):
     """Half a cycle in ms from the cycle count and cycle time (s) parameters; 0 if bad.
-    The seconds go through their float32 bits (mission_items.fix: * 1e4, exact), not a
-    float: on MicroPython a float is a heap object."""
+    The seconds go through their float32 bits (units.fix: * 1e4, exact), not a float:
+    on MicroPython a float is a heap object."""
     if not cmd.finite(count) or not cmd.finite(time) or not 1 <= cmd.int(count) <= 10000:
         return 0
     copy(scratch, cmd.payload, (time - 1) * 4 << 10, 4)
