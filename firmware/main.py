@@ -4,6 +4,7 @@
 Options: --board NAME, --link SPEC (repeatable: udpout:HOST:PORT, udpin:ADDR:PORT,
 serial:DEVICE:BAUD), --storage DIR, --sysid N, --set NAME=VALUE (board option,
 repeatable). On a board, with no arguments, the profile flashed as board.py is used.
+Reference: docs/core.md; the board settings: docs/boards.md.
 """
 import gc
 import sys

@@ -9,6 +9,7 @@
 #           (frozen as `main`) runs it at boot on ports that run main.py
 #   native  0 leaves out the viper kernels, for ports built without the native emitter
 #           (their code would not run there); the portable kernels are then used
+# Reference: docs/core.md.
 import os
 import tempfile
 
