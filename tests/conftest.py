@@ -58,7 +58,7 @@ SEED_XML = os.path.join(os.path.dirname(ROOT), "shared", "spec", "common-2012.xm
 @pytest.fixture(scope="session")
 def seedmav(tmp_path_factory):
     """pymavlink's generated module for the seed's message set (MAVLink 1.0): what a
-    seed-era ground station speaks (tests/test_seed_*.py, test_ftp_seed.py)."""
+    seed-era ground station speaks (tests/test_seed_*.py)."""
     import importlib.util
 
     from pymavlink.generator import mavgen
