@@ -1,11 +1,10 @@
 """The simulated vehicle behind boards/unix.py: its state (position, speeds, attitude,
 battery, payload) and the telemetry a real vehicle's sensors and estimator would feed,
-so a ground station sees a live vehicle. What it does in each flight mode, the flight
-commands and the failsafes are the flight pilot's (sim_pilot.py); how it moves is
-sim_motion.py's; the mission, sim_mission.py's; pilot inputs, sim_inputs.py's.
-
-It is an application like any other: it reads and writes the endpoint's services
-and allocates freely (it stands in for real sensors and control code).
+so a ground station sees a live vehicle. What it does in each flight mode is the flight
+pilot's (pilot.py); how it moves, motion.py's; the mission, mission.py's; pilot inputs,
+inputs.py's. It is an application like any other: it reads and writes the endpoint's
+services and allocates freely (it stands in for real sensors and control code).
+Reference: docs/sim.md.
 """
 import math
 
@@ -79,7 +78,7 @@ class Simulator:
         return None
 
     def failsafe(self, reason):
-        """An input the vehicle flies by is lost: hold, then return (sim_pilot.py)."""
+        """An input the vehicle flies by is lost: hold, then return (failsafe.py)."""
         self.pilot.failsafe.trip(reason)
 
     def failsafe_clear(self, reason):

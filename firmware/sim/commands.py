@@ -1,8 +1,7 @@
-"""The simulated vehicle's flight commands (firmware/sim_pilot.py's FlightPilot takes
-them as its own: this is the half of it that answers ground stations). Each handler
-is registered in ep.commands by FlightPilot._hooks and returns a MAV_RESULT; a refusal
-says why in a STATUSTEXT. NAV_TAKEOFF and NAV_LAND answer IN_PROGRESS and finish when
-the flight does (FlightPilot._finish).
+"""The simulated vehicle's flight commands: the half of the flight pilot (pilot.py) that
+answers ground stations. Each handler returns a MAV_RESULT; a refusal says why in a
+STATUSTEXT. NAV_TAKEOFF and NAV_LAND answer IN_PROGRESS and finish when the flight
+does. Reference: docs/sim.md.
 """
 import struct
 

@@ -1,29 +1,7 @@
 """The simulated vehicle's pilot: turns the inputs service's records into motion demands
-for the simulator (firmware/simulator.py), and trips its failsafe when they stop.
-
-    pilot = PilotInputs(sim)            sim: the Simulator (sim.ep, sim.lat, sim.lon, sim.alt,
-                                        sim.heading; sim.failsafe(reason) where it has one)
-    pilot.demand(mode_name, dt) ->
-        None                            no usable input: the mode holds
-        ("vel", vn, ve, vd, yaw_rate)   m/s north, east, down; rad/s
-        ("pos", lat, lon, alt_msl, yaw) a point to fly to (deg, deg, m; yaw rad or None)
-    pilot.mode_check(name) -> None | reason   OFFBOARD needs a fresh setpoint first (PX4's rule)
-
-STABILIZE, ALT_HOLD, POSITION: MANUAL_CONTROL (x forward, y right, z throttle with 500
-hovering, r yaw), else RC override channels 1-4 (roll, pitch, throttle, yaw; PWM 1000-2000,
-1500 centred, a channel not overridden reads centred). Sticks give speeds: full stick is
-the simulator's horizontal speed limit (WP_SPEED / sim_speed), its climb and sink rates,
-and a yaw rate of 90 deg/s (a PILOT_YAW_RATE parameter where the board has one). The kinematic model has no attitude loop, so STABILIZE
-flies like ALT_HOLD with the throttle as a climb rate, and POSITION holds still when the
-sticks are centred.
-OFFBOARD: the freshest of SET_POSITION_TARGET_LOCAL_NED, SET_POSITION_TARGET_GLOBAL_INT
-and SET_ATTITUDE_TARGET, with its type_mask honoured: a position (when its axes are not
-ignored) is flown to, else a velocity, else (attitude) tilt and thrust become a velocity.
-Local NED is the frame LOCAL_POSITION_NED reports (origin: the simulator's home); the
-frames LOCAL_NED, LOCAL_OFFSET_NED, BODY_NED, BODY_OFFSET_NED, BODY_FRD and LOCAL_FRD.
-
-Failsafe: when an input this mode flies by stops for the board's INPUT_TIMEOUT_MS
-(inputs.on_input_lost) and nothing else can stand in, sim.failsafe("...") (hold, then RTL).
+for the flight pilot (demand(mode, dt): a velocity, a point, or None to hold), vets
+OFFBOARD (mode_check), and trips the simulator's failsafe when the inputs a mode flies
+by stop. Reference: docs/sim.md.
 """
 import math
 

@@ -1,7 +1,7 @@
-"""The mission, as the simulated vehicle (firmware/simulator.py) flies it in AUTO: the
-current item from the mission runner (mavstack/services/mission_runner.py), carried out
-with the kinematic model of sim_motion.py. The flight pilot (sim_pilot.py) calls step()
-while the vehicle is armed in AUTO and pauses the runner when it leaves AUTO.
+"""The mission, as the simulated vehicle flies it in AUTO: the current item from the
+mission runner (services/missions/runner.py), carried out with the kinematic model of
+motion.py. The flight pilot (pilot.py) calls step() while the vehicle is armed in AUTO
+and pauses the runner when it leaves AUTO. Reference: docs/sim.md.
 """
 import math
 
@@ -9,24 +9,8 @@ from .motion import Motion
 
 
 class MissionPilot(Motion):
-    """Flies the mission for the simulator: the current item from the mission runner,
-    carried out with a kinematic model (horizontal speed, climb rate, turn rate).
-
-    Speeds and the default acceptance radius (sim_motion.Motion) are read again at each
-    new item. A NAV_WAYPOINT is reached within its
-    param2 (WP_ACCEPT_RAD when 0) and held there for param1 seconds.
-
-    Today's planners' commands: NAV_DELAY holds for param1 seconds (or until the UTC
-    time of day in param2-4); DO_CHANGE_SPEED changes the speed (param1: 0/1
-    horizontal, 2 climb, 3 descent; param2 -1 no change, -2 back to the parameter) until
-    the mission starts over; NAV_LOITER_TO_ALT flies to its position, then to its
-    altitude; a takeoff, land or loiter without a position (x, y unset or 0) happens
-    where the vehicle is. A region of interest (DO_SET_ROI_LOCATION, DO_SET_ROI with
-    mode 3, NAV_ROI) turns the vehicle's nose to it until DO_SET_ROI_NONE; the camera
-    and gimbal commands are kept on the simulator (sim.roi, sim.gimbal, sim.photos,
-    sim.trigger_dist, sim.video) as a payload would act on them; DO_LAND_START only
-    marks where a landing sequence begins.
-    """
+    """Flies the mission's current item for the simulator: the motion model (Motion), its
+    speeds read again at each new item. What each command does: docs/sim.md."""
 
     def __init__(self, sim):
         Motion.__init__(self, sim)

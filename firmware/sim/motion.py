@@ -1,11 +1,8 @@
-"""How the simulated vehicle moves (firmware/simulator.py): a kinematic model with a
-horizontal speed, climb and sink rates and a turn rate, that flies toward a point or
-at a velocity and never below the ground (the home altitude: a flat field).
-
-Speeds are the parameters WP_SPEED, WP_SPEED_UP, WP_SPEED_DN, WP_ACCEPT_RAD and
-SIM_YAW_RATE, read again by settings(); `--set sim_speed=M/S` (and sim_climb) override
-them, beyond their ranges, for tests that fly a whole mission in a second.
-DO_CHANGE_SPEED (a mission item or a command) changes a speed until reset_speeds().
+"""How the simulated vehicle moves: a kinematic model with a horizontal speed, climb and
+sink rates and a turn rate, that flies toward a point or at a velocity and never below
+the ground (the home altitude: a flat field). The speeds are the WP_* parameters,
+`--set sim_speed` (and the like) over them, DO_CHANGE_SPEED over both. Reference:
+docs/sim.md.
 """
 import math
 

@@ -1,33 +1,7 @@
-"""The simulated vehicle's flight control (firmware/simulator.py): what it does in each
-flight mode, the flight commands (their handlers: sim_commands.py), the failsafes, and
-the truth telemetry tells of it (landed state, airborne).
-
-Modes (the board's FLIGHT_MODES; a ground station's mode change and the command that
-implies a mode have the same effect):
-  TAKEOFF   straight up to the takeoff altitude (NAV_TAKEOFF's param7 above home, or
-            MIS_TAKEOFF_ALT), then LOITER
-  LOITER    holds where it is; GUIDED holds too, or goes to a commanded point and holds
-            (DO_REPOSITION, NAV_LOITER_UNLIM with a position, MAVProxy's `guided`)
-  RTL       up to RTL_ALT above home (or stays higher), home, down, disarms
-  LAND      down where it is (or at NAV_LAND's position), disarms
-  AUTO      flies the mission (sim_mission.py); at its end it holds (LOITER), or, landed
-            by it (a LAND item, last or not), disarms
-  STABILIZE, ALT_HOLD, POSITION, OFFBOARD   the pilot's demands (sim_inputs.py); without
-            them the vehicle holds
-Nothing leaves the ground disarmed; a vehicle disarmed in the air (a forced disarm) falls.
-Armed on the ground with nothing to do for DISARM_DELAY seconds, it disarms (ArduPilot's
-rule; 0: never).
-
-Commands: NAV_TAKEOFF and NAV_LAND answer IN_PROGRESS (again every half second) and then
-ACCEPTED at the altitude or on touchdown, FAILED if something else happens first; the
-others answer at once. Refusals carry their MAV_RESULT and a STATUSTEXT saying why:
-takeoff disarmed DENIED, takeoff in the air FAILED (ArduPilot's answer), reposition or
-loiter on the ground DENIED, MISSION_START disarmed or without a mission DENIED.
-
-Failsafes: a lost pilot input (sim_inputs.py calls sim.failsafe) or a lost ground station
-(FS_GCS_ENABLE; a mission in AUTO flies on, as ArduPilot's "continue in auto") puts the
-vehicle in LOITER at once and in RTL FS_HOLD_S seconds later, unless the input comes back
-or a ground station picks another mode first.
+"""The simulated vehicle's flight control: what it does in each flight mode, the flight
+commands under way (their handlers: commands.py), the landed state and airborne flag
+telemetry tells, the vetoes on mode changes and arming, and where the failsafes
+(failsafe.py) hook in. Reference: docs/sim.md.
 """
 import math
 
@@ -49,7 +23,7 @@ class FlightPilot(FlightCommands):
         ep = self.ep = sim.ep
         self.status = ep.services.get("status")
         self.missions = ep.services.get("missions")
-        self.mission = MissionPilot(sim)  # also the motion model (sim_motion.Motion)
+        self.mission = MissionPilot(sim)  # also the motion model (motion.Motion)
         self.inputs = None
         if ep.services.get("inputs") is not None:
             self.inputs = PilotInputs(sim)

@@ -1,33 +1,8 @@
 """What the simulated vehicle does with the seed's calibration, video, debugging and
 state-correction messages: the application side of services/calibration.py,
-seed_commands.py (DO_CONTROL_VIDEO), debug.py and geography.py (STATE_CORRECTION).
-
-Debug values (NAMED_VALUE_FLOAT/INT, DEBUG, DEBUG_VECT, MEMORY_VECT) and a
-STATE_CORRECTION are taken as the simulator's console would: kept (the debug service's
-`values`, name or index -> value as text; the geography service's `corrections`, a
-count) and told back in a STATUSTEXT
-("Debug speed=1.50", "State correction x=0.10 y=... z=..."), so a ground station sees
-that they arrived.
-
-Calibration:
-
-PREFLIGHT_CALIBRATION: the sensors asked for (param1 gyro, 2 magnetometer, 3 ground
-pressure, 4 radio, 5 accelerometer, 6 compass/motor, 7 airspeed; 1 each) are
-"calibrated" one after the other over SIM_CAL_MS each: the command answers
-IN_PROGRESS, a STATUSTEXT reports each step ("Calibrating gyro: 50%"), and the final
-COMMAND_ACK is ACCEPTED. Nothing asked for is DENIED. A calibration under way is
-cancelled, FAILED, if the vehicle is armed meanwhile (the service refuses to start one
-armed). PREFLIGHT_SET_SENSOR_OFFSETS: sensor 0-6 takes the offsets (kept in
-`offsets[sensor]`, reported by STATUSTEXT), any other is DENIED.
-The board composes it with the simulator (boards/unix.py application(): compose()),
-which also gives DO_CONTROL_VIDEO the simulator's camera, and a mission's relay,
-servo and video items their effect as the runner makes each current.
-
-Setpoint echoes (services/seed_telemetry.py, the seed's set): at 10 Hz the attitude and
-thrust the model flies (ROLL_PITCH_YAW_THRUST_SETPOINT; the speed and rate setpoints
-with zero rates: it holds them) and the point it flies toward
-(GLOBAL_POSITION_SETPOINT_INT, MSL). Once a GPS global origin is set, the local frame's
-offset from it (LOCAL_POSITION_NED_SYSTEM_GLOBAL_OFFSET), also at 10 Hz.
+seed_commands.py (DO_CONTROL_VIDEO), debug.py and geography.py (STATE_CORRECTION), and
+the seed's setpoint echoes (services/seed_telemetry.py). The board composes it with the
+simulator (boards/unix.py application(): compose()). Reference: docs/sim.md.
 """
 import math
 import struct
