@@ -2,19 +2,13 @@
 loss-free and with lost frames.
 
 The unix vehicle (`--set udp_bytes_per_s=5760`) talks to a pymavlink ground station
-(tests/mission_gcs.py) through a relay that plays the radio (tests/relay.py): each way carries
-5760 bytes a second (57600 baud, 8N1), a frame leaves when the one before it has gone
-and arrives when its last byte has; the vehicle's telemetry shares the air as on a
-real radio. The line-rate bound of a transfer is every byte of its own frames
-(MISSION_COUNT, requests, items, ACK) at 5760 B/s, one after the other; the vehicle
-asks for several items at once, so an upload can beat it (both ways carry at once).
-
-Lossy runs drop frames each way (they still take their air time): the vehicle asks
-again for what is missing from the round trip it measures, the ground station re-sends
-its last item or MISSION_COUNT after 250 ms without a request.
-- mission_upload_500_lossy_s: 500 items with 10% lost, bound 2x the loss-free upload;
-- mission_cancelled_200_lossy20: of RUNS_20 uploads of 200 items with 20% lost, how many
-  did not end ACCEPTED (the vehicle gave up, or the ground station did); floor 0.
+(tests/mission_gcs.py) through a relay that plays the radio (tests/relay.py: 5760 B/s
+each way, a frame arriving when its last byte has), the vehicle's telemetry sharing the
+air. The line-rate bound of a transfer is every byte of its own frames at 5760 B/s, one
+after the other. Lossy runs drop frames each way: mission_upload_500_lossy_s (10% lost,
+bound 2x the loss-free upload) and mission_cancelled_200_lossy20 (of RUNS_20 uploads of
+200 items with 20% lost, how many did not end ACCEPTED; floor 0). The figures:
+docs/testing.md.
 
     .venv/bin/python bench/bench_missions.py
 """

@@ -1,18 +1,13 @@
 """Full parameter download over a 57600 baud radio, with telemetry flowing, measured
 end to end.
 
-The unix vehicle runs with `--set udp_bytes_per_s=5760` (57600 baud, 8N1) behind a
-relay that plays the radio (tests/relay.py: each way carries 5760 B/s), with the
-telemetry a radio board sends by default (boards/radio.py: ATTITUDE at 4 Hz,
-GLOBAL_POSITION_INT and VFR_HUD at 2 Hz, SYS_STATUS, GPS_RAW_INT, MISSION_CURRENT at
-1 Hz, ...), set with REQUEST_DATA_STREAM and SET_MESSAGE_INTERVAL as a ground station
-would. pymavlink asks for the list through the radio and times it until every
-parameter has arrived.
-The line-rate bound is the bytes those PARAM_VALUE frames took on the wire at
-5760 B/s; the list takes what HEARTBEAT and the streams leave of the link, so the
-streams' share is the most it can lose to them. The median of five lists, asked back to
-back; the ATTITUDE frames received all the while (their rate by the vehicle's clock,
-against the 4 Hz set, and the longest gap between two) show the telemetry kept flowing.
+The unix vehicle runs with `--set udp_bytes_per_s=5760` behind a relay that plays the
+radio (tests/relay.py: 5760 B/s each way), with the telemetry a radio board sends by
+default (boards/radio.py), asked for as a ground station would. pymavlink asks for the
+list through the radio and times it until every parameter has arrived: the median of
+five lists, back to back. The line-rate bound is the bytes those PARAM_VALUE frames took
+at 5760 B/s; the ATTITUDE frames received all the while (their rate against the 4 Hz
+set, the longest gap) show the telemetry kept flowing. The figures: docs/testing.md.
 
     .venv/bin/python bench/bench_params.py
 """

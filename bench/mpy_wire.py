@@ -88,8 +88,8 @@ def encode_all(enc, count, first=0):
 def allocated(fn, a, b, c, none):
     """Bytes fn(a, b, c) requested from the heap beyond what fn(a, none...) does, i.e.
     for its frames and not for the bench's own calls. micropython.mem_total() counts
-    every request, also those freed before the call returns (frame states of functions
-    with many locals), which gc.mem_alloc() would not show."""
+    every request, also those freed before the call returns (a function's frame state
+    on the heap: docs/design.md), which gc.mem_alloc() would not show."""
     gc.collect()
     before = micropython.mem_total()
     fn(a, b, c)

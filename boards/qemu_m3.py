@@ -8,7 +8,7 @@ STORAGE = "ram"
 STORAGE_REGION = (0x00200000, 0x80000)  # 512 KB of RAM above the firmware's, below the stack
 # The filesystem of the firmware `mavctl flash` writes to (mcu/boot_fs.py mounts it at /flash)
 FS_REGION = (0x00280000, 0x100000)  # 1 MB above the storage region
-MPY_ARCH = "armv7m"  # mpy-cross -march for this CPU (host_tools/flash.py)
+MPY_ARCH = "armv7m"  # mpy-cross -march for this CPU (mavctl flash)
 MACHINE = "Cortex-M3"  # in the firmware's sys.implementation._machine: flash refuses other boards
 RAM_BUDGET = 72 * 1024  # measured (make bench): 66-67 KB held; the whole GCS test passes from a 72 KB heap
 

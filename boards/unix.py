@@ -18,7 +18,7 @@ FENCE_CAPACITY = 100
 RALLY_CAPACITY = 20
 OPERATOR_PASSKEY = None  # a string makes CHANGE_OPERATOR_CONTROL required to take control
 GCS_TIMEOUT_MS = 5000
-# Modes (mavstack/services/modes.py): what the simulator flies, one row a mode:
+# Modes (mavstack/services/status/modes.py): what the simulator flies, one row a mode:
 # (number, name, MAV_MODE_FLAG bits, PX4 main mode, PX4 sub mode, MAV_STANDARD_MODE).
 # Ground stations that assume ArduPilot (MAVProxy's `mode GUIDED`) read and set the
 # number, ArduCopter's; MAVSDK reads and sets PX4's main/sub mode; modern ones may use
@@ -37,7 +37,7 @@ FLIGHT_MODES = (
     (4, "OFFBOARD", 16 | 8, 6, 0, 0),  # follows an offboard computer's setpoints
 )
 MODE_NUMBERING = "auto"  # per link, as its ground station reads modes (modes.py), or "ardupilot" / "px4"
-# inputs (mavstack/services/inputs.py)
+# inputs (mavstack/services/inputs/)
 INPUT_TIMEOUT_MS = 1000  # an input that stops this long is lost: on_input_lost (the simulator's failsafe)
 RC_OVERRIDE_TIMEOUT_MS = 3000  # an RC override channel not set again this long goes back to the radio
 RAM_BUDGET = 416 * 1024  # heap the vehicle may hold after start-up (main.py reports it): every service and the simulator (its flight modes, commands and failsafes ~40 KB), 64-bit pointers
@@ -76,7 +76,7 @@ PARAM_SYSID = "MAV_SYS_ID"  # the read-only parameter that shows the system id
 # streams
 # (message id, Hz) sent on every link without being asked: QGroundControl and MAVSDK
 # never send REQUEST_DATA_STREAM to a generic autopilot. Ground stations change them
-# with MAV_CMD_SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM (mavstack/services/streams.py).
+# with MAV_CMD_SET_MESSAGE_INTERVAL or REQUEST_DATA_STREAM (mavstack/services/streams/).
 # HEARTBEAT comes from the status service once a second.
 DEFAULT_STREAMS = (
     (1, 1),  # SYS_STATUS
@@ -101,7 +101,7 @@ DEFAULT_STREAMS = (
 )
 
 
-# missions (capacities above; mavstack/services/missions.py, mission_runner.py)
+# missions (capacities above; mavstack/services/missions/)
 MISSION_FRAMES = (0, 2, 3, 5, 6)  # MAV_FRAMEs the simulator flies: global, mission, relative alt
 MISSION_COMMANDS = ()  # MAV_CMDs the application flies beyond the seed's NAV/CONDITION/DO set
 MISSION_RETRY_MS = 250  # re-request a missing item after this until the round trip is measured

@@ -1,10 +1,10 @@
 """Parameters of the simulated vehicle (boards/unix.py): a small quadcopter's set.
 
 One row a parameter: (name, MAV_PARAM_TYPE, default, min, max, flags); see
-mavstack/services/params.py. The table is what a ground station sees of a small
+docs/services/params.md. The table is what a ground station sees of a small
 autopilot: every value can be listed, edited and kept; the simulator acts on the WP_*
 speeds and radius, SIM_YAW_RATE, MIS_TAKEOFF_ALT, RTL_ALT, DISARM_DELAY, FS_GCS_ENABLE and FS_HOLD_S
-(firmware/sim_pilot.py), the rest are stored and served.
+(firmware/sim/), the rest are stored and served.
 Integers are INT32, as on PX4: MAVSDK (4.x) lists and sets only INT32 and REAL32
 parameters of a bytewise autopilot; the service itself takes every 8/16/32-bit type.
 """

@@ -6,16 +6,11 @@ and run under qemu-system-arm with its UARTs on ptys.
     python mcu/firmware.py run qemu_m3                                  the board with a
         filesystem (mcu/boot_fs.py), its UARTs on ptys: `mavctl flash --board qemu_m3` target
 
-MicroPython's source is Debian's source package `micropython` (1.25.0 in trixie: its
-ports/qemu, .mpy format 6.3 like ours), fetched with plain `apt-get source` through a
-deb-src entry made from this machine's own Debian apt entries, into build/mcu/. The
-toolchain and emulator are Debian's too (`make mcu-deps` installs them).
-
-Two boards, each a real board profile in boards/:
-  qemu_m3  MPS2-AN385, Cortex-M3, native emitter (viper kernels); REPL on UART0,
-           MAVLink on UART1 (QEMU's second -serial)
-  qemu_m0  micro:bit with flash and RAM raised, Cortex-M0, no native emitter
-           (portable kernels); one UART: the REPL until the vehicle starts, then MAVLink
+MicroPython's source is Debian's source package `micropython` (1.25.0 in trixie), fetched
+with `apt-get source` into build/mcu/; the toolchain and emulator are Debian's too (`make
+mcu-deps`). The boards, qemu_m3 (Cortex-M3, viper kernels, MAVLink on UART1) and qemu_m0
+(Cortex-M0, portable kernels, one UART), are profiles in boards/; their reference:
+docs/boards.md, the MCU stage: docs/testing.md.
 """
 import os
 import re
