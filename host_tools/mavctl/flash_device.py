@@ -7,6 +7,7 @@ vehicle's first HEARTBEAT on its MAVLink port.
 Every failure is a DeviceError: one line and mavctl's exit status for it.
 """
 import errno
+import hashlib
 import os
 import time
 
@@ -179,8 +180,6 @@ def prepare_script(files):
 
 
 def _sha256(data):
-    import hashlib
-
     return hashlib.sha256(data).hexdigest()
 
 
