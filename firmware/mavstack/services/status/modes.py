@@ -1,40 +1,16 @@
-"""Flight modes: the board's mode table, the number each ground station reads a mode by,
-and the ways ground stations set one (the status service owns the current mode and
-calls in here).
-
-The table (the board's FLIGHT_MODES), one row a mode:
-
-    (number, "NAME", MAV_MODE_FLAG bits, px4_main, px4_sub, MAV_STANDARD_MODE)
-
-MAV_AUTOPILOT_GENERIC defines no custom modes, so every ground station reads
-HEARTBEAT.custom_mode by the convention of the autopilot it assumes:
-- ArduPilot's (MAVProxy, Mission Planner, pymavlink's mode names for anything but PX4):
-  `number`, as ArduCopter numbers its modes (STABILIZE 0, AUTO 3, GUIDED 4 ...);
-- PX4's (MAVSDK for anything but ArduPilot): px4_main in bits 16-23, px4_sub in bits
-  24-31 (AUTO.LOITER is main 4, sub 3).
-So each link reports the mode the way its ground station reads it. With MODE_NUMBERING
-"auto" (the default) a link starts with ArduPilot's numbers and changes to PX4's when its
-ground station shows itself as MAVSDK: a ground-station heartbeat from system id 245
-(MAVSDK's own), or a SET_MODE whose custom mode is PX4-encoded. "ardupilot" or "px4"
-fix the choice. Rows may share a number (ArduCopter takes off and follows setpoints in
-GUIDED: TAKEOFF and OFFBOARD are shown as GUIDED there); a number set picks its first row.
-
-Setting a mode, whichever way it comes, ends in status.set_mode -> find():
-- a custom mode (MAV_MODE_FLAG_CUSTOM_MODE_ENABLED): below 65536 a row's number, from
-  65536 up a PX4 encoding (never ambiguous: a PX4 main mode is at least 1);
-  MAV_CMD_DO_SET_MODE carries PX4's main and sub mode in param2 and param3, so on a
-  link in PX4's convention they are read that way;
-- base-mode flags alone: the row whose flags match (AUTO, GUIDED, STABILIZE ...); so is
-  custom mode 0 with AUTO or GUIDED among the flags (what a generic station sends for
-  "AUTO"; ArduPilot's convention names STABILIZE with the custom flag alone);
-- MAV_CMD_DO_SET_STANDARD_MODE: the row of that MAV_STANDARD_MODE.
-Anything else is refused. A board without a table keeps flag-only modes.
-Where the dialect has them, AVAILABLE_MODES (all, or one by index: REQUEST_MESSAGE
-param2) and CURRENT_MODE (on change and on request) describe the table.
+"""Flight modes: the board's mode table (FLIGHT_MODES), the number each ground station
+reads a mode by (ArduPilot's or PX4's, per link), the ways ground stations ask for a mode
+(SET_MODE, DO_SET_STANDARD_MODE; DO_SET_MODE comes through vehicle_commands.py) and the
+mode state machine: a request is found in the table, vetted by the application's hooks
+and applied to the status service's state (mode, custom_mode, flight_mode, hil). A board
+without a table keeps flag-only modes. AVAILABLE_MODES and CURRENT_MODE where the dialect
+has them. Made by the status service (status.modes).
+Reference: docs/services/status.md
 """
 from struct import pack_into
 
 from ...compat import const
+from ...fields import u32
 
 _NUMBER = const(0)
 _NAME = const(1)
@@ -51,37 +27,47 @@ _NOT_USER_SELECTABLE = const(2)  # MAV_MODE_PROPERTY
 _AUTO_OR_GUIDED = const(12)
 
 _MSG_HEARTBEAT = const(0)
+_MSG_SET_MODE = const(11)
 _MSG_AVAILABLE_MODES = const(435)
 _MSG_CURRENT_MODE = const(436)
 _CMD_DO_SET_STANDARD_MODE = const(262)
 _CMD_REQUEST_MESSAGE = const(512)
+_ACCEPTED = const(0)
 _DENIED = const(2)
 _UNSUPPORTED = const(3)
+_WARNING = const(4)  # MAV_SEVERITY
+# MAV_MODE_FLAG
+_MODE_HIL = const(32)
+_MODE_CUSTOM = const(1)
+_FLAGS_DEFAULT = const(0x5D)  # MANUAL_INPUT | STABILIZE | GUIDED | AUTO | CUSTOM_MODE
 
 
 class Modes:
-    def __init__(self, table, numbering="auto"):
+    def __init__(self, table, numbering="auto", flags_supported=_FLAGS_DEFAULT):
         if numbering not in ("auto", "ardupilot", "px4"):
             raise ValueError("MODE_NUMBERING is 'auto', 'ardupilot' or 'px4'")
         self.numbering = numbering
+        self.flags_supported = flags_supported  # the board's MODE_FLAGS
         self.set_table(table)
+        self.row = -1  # the current mode's row in the table, -1: none (flag-only modes)
+        self.intended = -1  # the row a ground station last asked for
+        self.changed = False  # a new row since CURRENT_MODE was last announced
         self._conv = bytearray(0)  # per link: _ARDUPILOT or _PX4
         self._index = 0  # AVAILABLE_MODES asked for: 0 all, else one (1-based)
         self._request = None  # the REQUEST_MESSAGE handler wrapped (wrap_request_message)
-        self.ep = None
-        self.status = None
+        self.status = None  # the status service, once attached
 
     def set_table(self, table):
         self.table = table
-        # Per row, made once: the PX4 encoding (below 2^30: a small int on any board) and
+        # Per row, made once: the PX4 encoding (a small int: docs/design.md) and
         # the standard mode (0: none); 3-field rows (number, name, flags) have neither.
         self.px4 = [(r[3] << 16 | r[4] << 24) if len(r) > 4 else 0 for r in table]
         self.standard = bytes(r[5] if len(r) > 5 else 0 for r in table)
 
     def attach(self, ep, status):
-        self.ep = ep
         self.status = status
         ep.on(_MSG_HEARTBEAT, self._on_heartbeat)
+        ep.on(_MSG_SET_MODE, self._on_set_mode)
         if self.table:
             ep.commands[_CMD_DO_SET_STANDARD_MODE] = self._set_standard_mode
         if ep.has(_MSG_AVAILABLE_MODES):
@@ -97,10 +83,11 @@ class Modes:
     def wrap_request_message(self):
         # Once all services are in: AVAILABLE_MODES needs REQUEST_MESSAGE's param2 (which
         # mode), so the built-in handler is wrapped to note it first.
-        if _MSG_AVAILABLE_MODES in self.ep.producers and self._request is None:
-            self._request = self.ep.commands.get(_CMD_REQUEST_MESSAGE)
+        commands = self.status.ep.commands
+        if _MSG_AVAILABLE_MODES in self.status.ep.producers and self._request is None:
+            self._request = commands.get(_CMD_REQUEST_MESSAGE)
             if self._request is not None:
-                self.ep.commands[_CMD_REQUEST_MESSAGE] = self._request_message
+                commands[_CMD_REQUEST_MESSAGE] = self._request_message
 
     # --- conventions ----------------------------------------------------------------
     def px4_link(self, link):
@@ -115,20 +102,11 @@ class Modes:
         if p[4] == _MAV_TYPE_GCS and link.rx.sysid == _MAVSDK_SYSID:
             self._learn_px4(link)
 
-    def heard_custom(self, link, custom):
-        """A SET_MODE's custom mode: PX4-encoded ones show the station's convention."""
-        if custom >= 0x10000 and link is not None:
-            self._learn_px4(link)
-
     def custom_for(self, link, row, number):
         """HEARTBEAT.custom_mode of mode `row` (-1: none) as this link reads it."""
         if row >= 0 and self.px4_link(link):
             return self.px4[row]
         return number
-
-    def custom(self, link):
-        """The current mode's custom_mode for this link (the status service's HEARTBEAT)."""
-        return self.custom_for(link, self.status.mode_row, self.status.custom_mode)
 
     # --- finding a row --------------------------------------------------------------
     def find(self, flags, custom):
@@ -193,19 +171,116 @@ class Modes:
             i += 1
         return -1
 
-    # --- commands -------------------------------------------------------------------
+    # --- the mode state machine ------------------------------------------------------
+    def set_mode(self, base_mode, custom_mode=0):
+        """A ground station's request (status.set_mode) -> MAV_RESULT."""
+        status = self.status
+        status.reason = None
+        if base_mode & _MODE_HIL and not self.flags_supported & _MODE_HIL:
+            status.reason = "HIL not supported"
+            status.statustext(_WARNING, b"Mode: HIL not supported")
+            return _DENIED
+        row = self.find(base_mode & 0x5F, custom_mode)
+        if row >= 0:
+            result = self.enter(row, True)
+        elif row == -1 or custom_mode:
+            status.reason = "no such mode"  # a constant: a board may lock its heap
+            status.statustext(_WARNING, b"Mode: no such mode")
+            return _DENIED
+        else:
+            result = self._flag_mode(base_mode & 0x5E)
+        if result == _ACCEPTED and bool(base_mode & _MODE_HIL) != status.hil:
+            status.hil = not status.hil  # HIL_ENABLED goes with any mode
+            status.update_state()
+            if status.on_hil is not None:
+                status.on_hil(status.hil)  # the application blocks (or frees) its actuators
+        return result
+
+    def _flag_mode(self, flags):
+        # A board without a mode table: the flags alone.
+        status = self.status
+        if flags & ~self.flags_supported:
+            status.reason = "mode flags 0x%02x not supported" % (flags & ~self.flags_supported)
+            status.statustext(_WARNING, "Mode: " + status.reason)
+            return _DENIED
+        if status.mode_check is not None:
+            result = status.veto(status.mode_check(flags, 0), b"Mode: ")
+            if result != _ACCEPTED:
+                return result
+        status.mode = flags
+        status.custom_mode = 0
+        status.update_state()
+        return _ACCEPTED
+
+    def enter(self, row, asked):
+        """Into mode `row` of the table: asked (by a ground station) goes through the
+        vetoes, the application's own change (set_flight_mode) does not."""
+        if asked:
+            result = self._vet(row)
+            if result != _ACCEPTED:
+                return result
+            self.intended = row
+        self._apply(row)
+        return _ACCEPTED
+
+    def _vet(self, row):
+        status = self.status
+        entry = self.table[row]
+        flags = entry[_FLAGS] & 0x7E | _MODE_CUSTOM
+        if flags & ~self.flags_supported:
+            status.reason = "mode flags not supported"
+            status.statustext(_WARNING, b"Mode: flags not supported")
+            return _DENIED
+        if status.mode_check is not None:
+            answer = status.mode_check(flags, entry[_NUMBER])
+            if answer is not None:
+                return status.veto(answer, b"Mode: ")
+        if status.flight_mode_check is not None:
+            answer = status.flight_mode_check(entry[_NAME])
+            if answer is not None:
+                return status.veto(answer, b"Mode: ")
+        return _ACCEPTED
+
+    def _apply(self, row):
+        entry = self.table[row]
+        status = self.status
+        if row != self.row:
+            self.changed = True
+        status.mode = entry[_FLAGS] & 0x7E | _MODE_CUSTOM
+        status.custom_mode = entry[_NUMBER]
+        self.row = row
+        status.flight_mode = entry[_NAME]
+        status.update_state()
+
+    def announce(self):
+        # CURRENT_MODE after a change, where the dialect has it (a rare event).
+        self.changed = False
+        self.status.send_all(_MSG_CURRENT_MODE)
+
+    # --- incoming ---------------------------------------------------------------------
+    def _on_set_mode(self, link, p):
+        if p[4] != self.status.ep.sysid:
+            return
+        if not self.status.ep.allows(link):
+            self.status.statustext(_WARNING, b"Mode: GCS not in control")
+            return
+        custom = u32(p, 0)
+        if custom >= 0x10000:  # PX4-encoded: the station reads modes PX4's way
+            self._learn_px4(link)
+        self.set_mode(p[5], custom)
+
     def _set_standard_mode(self, cmd):
         # param1: MAV_STANDARD_MODE. One the vehicle does not have is not supported.
         if not cmd.finite(1):
             return _DENIED
         row = self.by_standard(cmd.int(1))
         if row < 0:
-            self.status.statustext(4, b"Mode: no such standard mode")
+            self.status.statustext(_WARNING, b"Mode: no such standard mode")
             return _UNSUPPORTED
-        if not self.ep.allows(cmd.link):
-            self.status.statustext(4, b"Mode: GCS not in control")
+        if not self.status.ep.allows(cmd.link):
+            self.status.statustext(_WARNING, b"Mode: GCS not in control")
             return _DENIED
-        return self.status.enter(row, True)
+        return self.enter(row, True)
 
     def _request_message(self, cmd):
         self._index = 0
@@ -248,12 +323,11 @@ class Modes:
         return link.send(_MSG_AVAILABLE_MODES)
 
     def send_current_mode(self, link):
-        status = self.status
-        row = status.mode_row
+        row = self.row
         off = link.tx.clear(link.tx.crc_len[_MSG_CURRENT_MODE] >> 16)
         buf = link.txbuf
-        pack_into("<I", buf, off, self.custom_for(link, row, status.custom_mode))
-        intended = status.intended_row
+        pack_into("<I", buf, off, self.custom_for(link, row, self.status.custom_mode))
+        intended = self.intended
         if intended >= 0:
             pack_into("<I", buf, off + 4, self.custom_for(link, intended, self.table[intended][_NUMBER]))
         buf[off + 8] = self.standard[row] if row >= 0 else 0

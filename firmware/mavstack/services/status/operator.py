@@ -1,19 +1,9 @@
-"""Operator control (the seed's CHANGE_OPERATOR_CONTROL #5 / _ACK #6).
-
-With a passkey configured, only the ground station that took control with it may
-change parameters, missions, the mode or arm: services ask endpoint.allows(link),
-which looks at the sender of the frame being handled. The holder is one ground
-station, not one system id (255 is most ground stations' default): its sysid and
-compid, the link it spoke on (its index), and on UDP the address its datagrams came
-from (the transport's rx_peer, None where the transport does not tell). Control is
-released by the holder (control_request 1), or when the holder's own heartbeats stop
-for the GCS timeout (another station's, whatever its sysid, do not count), so that a
-second ground station that knows the passkey can take over a vehicle whose operator is
-gone. Without a passkey nobody needs control and every request is granted.
-
-The passkey travels in clear text and the identity is what the frames claim: this
-keeps honest ground stations from interfering with each other, not an attacker who can
-see or reach the link. Only message signing authenticates (services/signing.py).
+"""Operator control (CHANGE_OPERATOR_CONTROL #5 / _ACK #6): with a passkey, only the
+ground station that took control with it may change the vehicle; services ask
+ep.allows(link). The holder is one ground station (system and component id, link, UDP
+address), released by it or when its own heartbeats stop. Made by the status service
+(status.operator, ep.operator).
+Reference: docs/services/status.md
 """
 from ...compat import const, ticks_diff
 from ...fields import cstr_len
@@ -134,13 +124,14 @@ def _put(buf, at, n):
     return at + 1
 
 
-def on_change_operator_control(ep, link, p, operator):
-    """Answer a CHANGE_OPERATOR_CONTROL (target_system, control_request, version, passkey)."""
+def on_change_operator_control(link, p):
+    """Answer a CHANGE_OPERATOR_CONTROL (target_system, control_request, version, passkey):
+    the endpoint's operator decides (ep.operator; none without a passkey: granted)."""
+    ep = link.endpoint
     if p[0] != ep.sysid or p[1] > 1:
         return
-    ack = _ACK_OK if operator is None else operator.request(link, p)
-    # gcs_system_id, control_request, ack: byte by byte, few values on the stack (a frame
-    # state over about 11 words is taken from the heap on every call).
+    ack = _ACK_OK if ep.operator is None else ep.operator.request(link, p)
+    # gcs_system_id, control_request, ack: byte by byte (docs/design.md)
     off = link.begin()
     buf = link.txbuf
     buf[off] = link.rx.sysid

@@ -1,14 +1,13 @@
-"""The vehicle's built-in commands, answered from the status service's state.
-
-COMPONENT_ARM_DISARM (400), DO_SET_MODE (176), PREFLIGHT_REBOOT_SHUTDOWN (246),
-REQUEST_AUTOPILOT_CAPABILITIES (520), GET_HOME_POSITION (410), DO_SET_HOME (179).
-Installed into endpoint.commands by status.attach; the commands service sends the
-ACKs. Commands that change the vehicle need operator control when a passkey is set.
-DO_SET_MODE to a mode the vehicle does not have (a flag it does not support, a custom
-mode not in the board's FLIGHT_MODES) is DENIED by status.set_mode, which says why; on a
-link in PX4's mode convention (services/modes.py) param2 and param3 are PX4's main and sub
-mode. MAV_CMD_DO_SET_STANDARD_MODE is the modes module's.
+"""The vehicle's own commands, answered from the status service's state:
+COMPONENT_ARM_DISARM, DO_SET_MODE, PREFLIGHT_REBOOT_SHUTDOWN,
+REQUEST_AUTOPILOT_CAPABILITIES, GET_HOME_POSITION and DO_SET_HOME; and the two messages
+they answer with, AUTOPILOT_VERSION and HOME_POSITION. Installed by the status service
+(the commands service sends the ACKs); those that change the vehicle need operator control.
+Reference: docs/services/status.md
 """
+from struct import pack_into
+
+from ... import VERSION
 from ...compat import const
 from ...statustext import CRITICAL, WARNING
 
@@ -34,12 +33,16 @@ _FRAME_GLOBAL = const(0)
 _FRAME_GLOBAL_RELATIVE_ALT = const(3)
 _FRAME_GLOBAL_INT = const(5)
 _FRAME_GLOBAL_RELATIVE_ALT_INT = const(6)
+_FIRMWARE_VERSION_TYPE_DEV = const(0)
 
 
 class VehicleCommands:
     def __init__(self, ep, status):
         self.ep = ep
         self.status = status
+        self._sw_version = _version_word(VERSION, _FIRMWARE_VERSION_TYPE_DEV)
+        self._os_version = _os_version()
+        self._one = 1.0  # HOME_POSITION's quaternion w, made once
 
     def _in_control(self, cmd, text):
         # text: a whole constant (joining bytes allocates, and a board may lock its heap)
@@ -94,10 +97,10 @@ class VehicleCommands:
             return _DENIED  # a valid request this board cannot carry out
         if not self._in_control(cmd, b"Reboot: GCS not in control"):
             return _DENIED
-        if self.status._reboot:
+        if self.status.rebooting:
             # Already on its way (this one's ACK may have been lost): asked again, it keeps
             # its time rather than being put off by every repeat; the other action waits.
-            return _ACCEPTED if self.status._reboot == action else _TEMPORARILY_REJECTED
+            return _ACCEPTED if self.status.rebooting == action else _TEMPORARILY_REJECTED
         if self.status.armed and not (cmd.finite(6) and cmd.int(6) == _FORCE_REBOOT):
             self.status.statustext(CRITICAL, b"Reboot: disarm first")
             return _DENIED
@@ -155,9 +158,57 @@ class VehicleCommands:
         status.set_home(lat, lon, alt_mm)
         return _ACCEPTED
 
+    # --- producers: send(link) -> bool, a few fields a pack_into (docs/design.md) ---
+    def send_autopilot_version(self, link):
+        # capabilities, uid, flight_sw_version, middleware 0, os_sw_version; board_version,
+        # vendor_id, product_id and the hashes stay 0.
+        off = link.tx.clear(link.tx.crc_len[_MSG_AUTOPILOT_VERSION] >> 16)
+        buf = link.txbuf
+        pack_into("<QQI", buf, off, self.ep.capabilities, self.status.uid, self._sw_version)
+        pack_into("<I", buf, off + 24, self._os_version)
+        return link.send(_MSG_AUTOPILOT_VERSION)
+
+    def send_home_position(self, link):
+        # lat, lon, alt; x, y, z 0; q = (1, 0, 0, 0); the rest 0.
+        if not self.status.home_set or _MSG_HOME_POSITION not in link.tx.crc_len:
+            return False  # (the seed's message set has no HOME_POSITION)
+        off = link.tx.clear(link.tx.crc_len[_MSG_HOME_POSITION] >> 16)
+        buf = link.txbuf
+        pack_into("<iii", buf, off, self.status.home_lat, self.status.home_lon, self.status.home_alt)
+        pack_into("<f", buf, off + 24, self._one)
+        return link.send(_MSG_HOME_POSITION)
+
+
+def board_uid(board, sysid):
+    """AUTOPILOT_VERSION's uid: the profile's UID, else the chip's id, else the sysid."""
+    uid = getattr(board, "UID", 0)
+    if not uid:
+        try:
+            import machine
+
+            uid = int.from_bytes(machine.unique_id()[:8], "little")
+        except (ImportError, AttributeError):
+            uid = 0
+    return uid or sysid
+
+
+def _version_word(v, kind):
+    return v[0] << 24 | v[1] << 16 | v[2] << 8 | kind
+
+
+def _os_version():
+    import sys
+
+    return _version_word(sys.implementation.version, _FIRMWARE_VERSION_TYPE_DEV)
+
 
 def install(ep, status):
     vc = VehicleCommands(ep, status)
+    # The layouts packed here (fields a dialect adds after them are zeroed first):
+    if ep.has(_MSG_AUTOPILOT_VERSION) and ep.fmt(_MSG_AUTOPILOT_VERSION).startswith("<QQIIIIHH"):
+        ep.producers[_MSG_AUTOPILOT_VERSION] = vc.send_autopilot_version
+    if ep.has(_MSG_HOME_POSITION) and ep.fmt(_MSG_HOME_POSITION).startswith("<iiifff4f"):
+        ep.producers[_MSG_HOME_POSITION] = vc.send_home_position
     ep.commands[_CMD_COMPONENT_ARM_DISARM] = vc.arm_disarm
     ep.commands[_CMD_DO_SET_MODE] = vc.set_mode
     ep.commands[_CMD_PREFLIGHT_REBOOT_SHUTDOWN] = vc.reboot_shutdown
