@@ -1,16 +1,9 @@
 """QGroundControl plan files (.plan, JSON): the mission, the geofence (inclusion and
-exclusion polygons and circles) and the rally points in one file, and their mapping to
-the three MAVLink mission types (0 mission, 1 fence, 2 rally) as lists of Items.
-
-    plan = read_plan("route.plan")          # or read_any() for a .plan or a QGC WPL file
-    plan.mission, plan.fence, plan.rally    # [mission_file.Item], ready to upload
-    plan.polygons(), plan.circles()         # the fence as shapes: for drawing
-    write_plan(plan, "back.plan")
-
-Mission items map one to one (item 0 is the first item: mavstack, like PX4, keeps home
-apart, in plannedHomePosition). Only "SimpleItem"s are read: QGroundControl's complex
-items (surveys, corridor scans, structure scans) are expanded by QGroundControl itself
-when it uploads them, so a file holding one is refused with its index.
+exclusion polygons and circles) and the rally points in one file, read and written as
+Plans whose three parts (mission, fence, rally: MAVLink mission types 0, 1, 2) are lists
+of mission_file.Items ready to upload; read_any() takes a .plan or a QGC WPL file. Only
+"SimpleItem"s are read: a file holding one of QGroundControl's complex items (a survey,
+a corridor scan) is refused with its index. Reference: docs/mavctl.md.
 """
 import json
 import math
