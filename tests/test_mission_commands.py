@@ -231,8 +231,8 @@ class B(Board):
 b = Bench(services=("status", "commands", "missions"), board=B, storage="ram")
 m = b.ep.services["missions"]
 status = b.ep.services["status"]
-m.t_store = m.stores[0]
-m.t_count = 5
+m.transfer.store = m.stores[0]
+m.transfer.count = 5
 items = []
 for frame, command, p1, x, y, z in %r:
     p = bytearray(38)

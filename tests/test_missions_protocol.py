@@ -416,7 +416,7 @@ def test_downloads_go_side_by_side(rig):
     rig.send("mission_request_int", 1, 1, 2, 0)  # the last one: done, no ACK needed
     assert [i.seq for i in rig.take("MISSION_ITEM_INT")] == [1, 2]
     assert rig.take("MISSION_ACK") == []
-    assert rig.missions.state == 0
+    assert rig.missions.transfer.state == 0
 
 
 def _acks_to(rig, sysid):
@@ -508,7 +508,7 @@ def test_stale_download_is_cancelled(rig):
         assert _acks_to(rig, 200) == []
     rig.run(600)
     assert _acks_to(rig, 200) == [OPERATION_CANCELLED]
-    assert rig.missions.state == 0
+    assert rig.missions.transfer.state == 0
     assert same(rig.download(sysid=201), items)
 
 

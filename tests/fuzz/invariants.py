@@ -106,11 +106,12 @@ def _missions(v):
                                                                    fresh.corrupt, s.count, s.gen, s.crc))
         finally:
             fresh.close()
-    if m.state != 0:
-        if m.t_store is None or m.t_link is None:
+    t = m.transfer
+    if t.state != 0:
+        if t.store is None or t.link is None:
             raise Broken("a transfer under way without its store or link")
-        if not 0 <= m.t_seq <= m.t_store.capacity + 1 or m.t_count > m.t_store.capacity:
-            raise Broken("transfer at %d of %d (capacity %d)" % (m.t_seq, m.t_count, m.t_store.capacity))
+        if not 0 <= t.seq <= t.store.capacity + 1 or t.count > t.store.capacity:
+            raise Broken("transfer at %d of %d (capacity %d)" % (t.seq, t.count, t.store.capacity))
 
 
 def _streams(v):

@@ -385,8 +385,8 @@ class OutFile:
 
 def meter(b, stores):
     """Meter the missions service of bench b (its only service)."""
-    import mavstack.services.missions as module
     import mavstack.services.missions.items as items
+    import mavstack.services.missions.transfer as module
 
     global _copy, _meter
     m = _meter = Meter()

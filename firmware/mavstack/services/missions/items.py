@@ -1,22 +1,18 @@
-"""What a mission item holds, for missions.py: the check of an uploaded item against
-the rules of its plan type (frames the vehicle flies, commands it knows, numbers where
-a command needs them, positions within range or left unset where the command takes
-"where the vehicle is", DO_JUMP targets within the plan), its 32-byte record built on
-the way (mission_store.py's layout), the STATUSTEXT that names a refused item, its
-command and what is wrong, and the seed's MISSION_ITEM float degrees converted to and
-from MISSION_ITEM_INT's 1e7 integers.
-
-Allocation-free on a 32-bit board too: coordinates (1e7 degrees reach 1.8e9) stay in
-their bytes, are range-checked by 16-bit halves and converted by small-int arithmetic;
-the refusal's text is written into a buffer made at import.
-m is the missions.Missions service (its record buffer, frames, extra commands and the
-upload under way); each function keeps within 11 words of locals and stack.
+"""What a mission item must hold: the check of an uploaded item against the rules of its
+plan type (frames the vehicle flies, commands it knows, numbers where a command needs
+them, positions within range or left unset where the command takes "where the vehicle
+is", DO_JUMP targets within the plan), its 32-byte record built on the way (store.py's
+layout), the STATUSTEXT that names a refused item, and the seed's MISSION_ITEM float
+degrees converted to MISSION_ITEM_INT's 1e7 integers. Allocation-free on a 32-bit board
+too: coordinates stay in their bytes, and the refusal's text is written into a buffer
+made at import. m is the missions service (its record buffer, frames, extra commands
+and the transfer under way). Reference: docs/services/missions.md.
 """
 import gc
 
 from ...compat import const
 from ...fields import u16, i32_cmp, f32_is_nan, f32_to_small
-from ...kernels import copy
+from ...kernels import copy, zero
 from ...units import LOCAL_FRAMES, fix, unset
 
 # Loading a module from a .mpy leaves the loader's garbage between the code it kept:
@@ -121,7 +117,7 @@ _RULES = (_MISSION_RULES, _FENCE_RULES, _RALLY_RULES)
 
 def check(m, p, is_int, seq):
     """Validate item seq (payload p of MISSION_ITEM_INT, or MISSION_ITEM if not is_int)
-    and build its record in m._rec -> MAV_MISSION_RESULT. A refusal is also told in a
+    and build its record in m.rec -> MAV_MISSION_RESULT. A refusal is also told in a
     STATUSTEXT naming the item, its command and what is wrong with it."""
     result = _check(m, p, is_int, seq)
     if result != _ACCEPTED:
@@ -130,7 +126,12 @@ def check(m, p, is_int, seq):
 
 
 def _check(m, p, is_int, seq):
-    _record(m._rec, p)
+    # The record: params, x, y, z as they came, command, frame, autocontinue.
+    copy(m.rec, p, 0, 28)
+    m.rec[28] = p[30]
+    m.rec[29] = p[31]
+    m.rec[30] = p[34]
+    m.rec[31] = p[36]
     frame = p[34]
     if frame not in m.frames:
         return _UNSUPPORTED_FRAME
@@ -139,7 +140,7 @@ def _check(m, p, is_int, seq):
         return _UNSUPPORTED
     if need & _POS and frame == _FRAME_MISSION:
         return _UNSUPPORTED_FRAME
-    return (_xy(m._rec, frame in LOCAL_FRAMES, need, is_int) or _numbers(p, need)
+    return (_xy(m.rec, frame in LOCAL_FRAMES, need, is_int) or _numbers(p, need)
             or (_jump(m, p, seq) if u16(p, 30) == _CMD_DO_JUMP else _area(m, need)))
 
 
@@ -149,20 +150,12 @@ def _area(m, need):
     if not need & _POS:
         return _ACCEPTED
     geo = m.ep.services.get("geography")
-    return _ACCEPTED if geo is None else geo.check_item(m._rec, m._rec[30])
-
-
-def _record(rec, p):
-    copy(rec, p, 0, 28)  # params, x, y, z as they came
-    rec[28] = p[30]  # command
-    rec[29] = p[31]
-    rec[30] = p[34]  # frame
-    rec[31] = p[36]  # autocontinue
+    return _ACCEPTED if geo is None else geo.check_item(m.rec, m.rec[30])
 
 
 def _need(m, command):
     """What the command needs (_P*, _POS bits), -1 if this plan type does not take it."""
-    mt = m.t_store.mission_type
+    mt = m.transfer.store.mission_type
     rules = _RULES[mt]
     for i in range(0, len(rules), 3):
         if rules[i] | rules[i + 1] << 8 == command:
@@ -191,10 +184,8 @@ def _coord(rec, o, local, need, is_int):
         return True
     if not is_int and not fix(rec, o, local) and need & _POS:
         return False
-    return not need & _POS or local or _within(rec, o)
-
-
-def _within(rec, o):
+    if not need & _POS or local:
+        return True
     # Latitude (o 16) within +-90 degrees, longitude within +-180, by 16-bit halves.
     if o == 16:
         return (i32_cmp(rec, 16, _LAT_MAX_HI, _LAT_MAX_LO) <= 0
@@ -207,61 +198,56 @@ def _within(rec, o):
 # "Mission item 12: cmd 31000 unsupported", written into a buffer made at import: a
 # refusal is rare, but the board may run with its heap locked.
 _TEXT = bytearray(50)
-_ZEROS = bytes(50)
 _PLAN = (b"Mission item ", b"Fence item ", b"Rally item ")
 _WHY = (b" frame ", b" unsupported", b" invalid", b" param", b" x/lat", b" y/lon", b" z/alt")
 
 
 def _refused(m, seq, result):
-    # Statement by statement, few values on the stack: a frame state over about 11
-    # words would come from the heap. The command and frame are in the record.
-    n = _text(_TEXT, 0, _PLAN[m.t_store.mission_type])
-    n = _digits(_TEXT, n, seq)
-    n = _text(_TEXT, n, b": cmd ")
-    n = _digits(_TEXT, n, u16(m._rec, 28))
-    n = _why(_TEXT, n, result, m._rec[30])
-    _text(_TEXT, n, _ZEROS)
+    # Statement by statement, few values on the stack (docs/design.md, function frames).
+    # The command and frame are in the record.
+    n = _text(0, _PLAN[m.transfer.store.mission_type])
+    n = _digits(n, seq)
+    n = _text(n, b": cmd ")
+    n = _digits(n, u16(m.rec, 28))
+    # What is wrong: " frame 1 unsupported", " unsupported", " param1 invalid" ...
+    if result == _UNSUPPORTED_FRAME:
+        n = _text(n, _WHY[0])
+        n = _digits(n, m.rec[30])
+        n = _text(n, _WHY[1])
+    elif result == _UNSUPPORTED:
+        n = _text(n, _WHY[1])
+    elif _INVALID_PARAM1 <= result < _INVALID_PARAM5_X:
+        n = _text(n, _WHY[3])
+        n = _digits(n, result - _INVALID_PARAM1 + 1)
+        n = _text(n, _WHY[2])
+    elif _INVALID_PARAM5_X <= result <= _INVALID_PARAM7:
+        n = _text(n, _WHY[4 + result - _INVALID_PARAM5_X])
+        n = _text(n, _WHY[2])
+    else:
+        n = _text(n, b" result ")
+        n = _digits(n, result)
+    zero(_TEXT, n, len(_TEXT))
     m.ep.statustext(_SEVERITY_ERROR, _TEXT)
 
 
-def _why(t, n, result, frame):
-    """What is wrong, after the command: " frame 1 unsupported", " unsupported",
-    " param1 invalid", " x/lat invalid" ... -> the offset after it."""
-    if result == _UNSUPPORTED_FRAME:
-        n = _text(t, n, _WHY[0])
-        n = _digits(t, n, frame)
-        return _text(t, n, _WHY[1])
-    if result == _UNSUPPORTED:
-        return _text(t, n, _WHY[1])
-    if _INVALID_PARAM1 <= result < _INVALID_PARAM5_X:
-        n = _text(t, n, _WHY[3])
-        n = _digits(t, n, result - _INVALID_PARAM1 + 1)
-    elif _INVALID_PARAM5_X <= result <= _INVALID_PARAM7:
-        n = _text(t, n, _WHY[4 + result - _INVALID_PARAM5_X])
-    else:
-        n = _text(t, n, b" result ")
-        return _digits(t, n, result)
-    return _text(t, n, _WHY[2])
-
-
-def _text(buf, at, text):
-    """buf[at:] = text, cut at the buffer's end -> the offset after it."""
+def _text(at, text):
+    """_TEXT[at:] = text, cut at its end -> the offset after it."""
     i = 0
-    while i < len(text) and at < len(buf):
-        buf[at] = text[i]
+    while i < len(text) and at < len(_TEXT):
+        _TEXT[at] = text[i]
         at += 1
         i += 1
     return at
 
 
-def _digits(buf, at, n):
-    """The decimal digits of 0 <= n < 100000 at buf[at:], cut at the buffer's end -> the
-    offset after them."""
+def _digits(at, n):
+    """The decimal digits of 0 <= n < 100000 at _TEXT[at:], cut at its end -> the offset
+    after them."""
     d = 10000
     while d > 1 and n < d:
         d //= 10
-    while d and at < len(buf):
-        buf[at] = 0x30 + n // d % 10
+    while d and at < len(_TEXT):
+        _TEXT[at] = 0x30 + n // d % 10
         at += 1
         d //= 10
     return at
@@ -270,7 +256,7 @@ def _digits(buf, at, n):
 def _jump(m, p, seq):
     # f32_to_small: a target or repeat count beyond 2^30 is as wrong as any other.
     target = f32_to_small(p, 0)
-    if target < 0 or target >= m.t_count or target == seq:
+    if target < 0 or target >= m.transfer.count or target == seq:
         return _INVALID_PARAM1
     if f32_to_small(p, 4) < -1:
         return _INVALID_PARAM1 + 1

@@ -1,36 +1,12 @@
 """Mission execution support: which item the application flies now, and what comes next.
-
-The application (the code that flies) asks the runner for the current item, does what
-it says, and calls reached() when it is done; the runner tells the ground stations
-(MISSION_ITEM_REACHED, MISSION_CURRENT), honours autocontinue, and steps over DO_JUMPs
-itself, with the seed's semantics: a DO_JUMP jumps to param1 as many times as param2
-says (-1: for ever), then falls through to the next item. Jump counters sit in a fixed
-table (one slot per DO_JUMP in the plan, MISSION_JUMP_SLOTS of them) and are reset by a
-new upload, MISSION_START and DO_SET_MISSION_CURRENT with reset.
-Everything else (NAV, NAV_DELAY, CONDITION_DELAY/DISTANCE/YAW/CHANGE_ALT, DO commands:
-speed, regions of interest, landing sequences, camera and gimbal) is the application's
-to carry out: each item is handed to it as it becomes current (on_item, and
-runner.item), the application calls reached() once it is done (at once for a DO
-command it has nothing to do for); runner.elapsed_ms() times a NAV_DELAY or
-CONDITION_DELAY, runner.next_nav() finds the position a CONDITION_DISTANCE refers to.
-
-    runner = ep.services["missions"].runner   (made by missions.create unless the board
-                                      says MISSION_RUNNER = False; MissionRunner(missions))
-    runner.run() / runner.pause()     entering / leaving the mode that flies the mission
-    runner.state                      MISSION_STATE: 1 no mission, 2 not started, 3 active,
-                                      4 paused, 5 complete
-    runner.current, runner.item       the item to carry out (Item, or None without a plan)
-    runner.reached()                  done with it: report, then advance if autocontinue
-    runner.waiting, runner.proceed()  held at an item without autocontinue; go on
-    runner.start(first, last)         MAV_CMD_MISSION_START (also sent by ground stations)
-    runner.set_current(seq, reset)    MISSION_SET_CURRENT, MAV_CMD_DO_SET_MISSION_CURRENT
-    runner.on_item                    hook(runner) when the current item changes
-Stepping (reached(), DO_JUMP, set_current) and runner.item allocate nothing, on a
-32-bit board too. An Item's command, frame, seq, is_nav ... are small ints; its
-coordinates, which reach 1.8e9 in 1e7 degrees (a heap object from 2^30 on a 32-bit
-board), are there as 16-bit halves (x_hi, x_lo, y_hi, y_lo) and in the raw record
-(item.rec). The floats (param1..4, z, lat, lon) and the ints x, y are made when first
-asked for, once per item, not per tick.
+The application asks the runner for the current item, does what it says and calls
+reached() when it is done; the runner tells the ground stations (MISSION_ITEM_REACHED,
+MISSION_CURRENT), honours autocontinue, and steps over DO_JUMPs itself with the seed's
+semantics (jump to param1, param2 times, -1 for ever, then fall through), its counters
+in a fixed table of MISSION_JUMP_SLOTS. Every other command is the application's, handed
+to it as it becomes current (on_item, runner.item). Stepping and runner.item allocate
+nothing, on a 32-bit board too: an Item's coordinates are there as 16-bit halves, and
+its floats are made when first asked for. Reference: docs/services/missions.md.
 """
 import struct
 
@@ -56,18 +32,8 @@ _NAN = float("nan")
 
 
 class Item:
-    """One mission item, decoded from its record.
-
-    Read without allocating: seq, command, frame, autocontinue, is_nav / is_condition /
-    is_do; rec, the 32-byte record (MISSION_ITEM_INT's fields: params and z as float32
-    bits at 0..15 and 24, x at 16 and y at 20 as int32, see mission_store.py); x and y
-    by 16-bit halves, x = x_hi * 65536 + x_lo (x_hi signed, x_lo 0..65535): compare
-    them with fields.i32_cmp(item.rec, 16, hi, lo) or do arithmetic on the halves.
-    x_unset, y_unset: x or y is INT32_MAX, "where the vehicle is" (a takeoff from here).
-    Made on first use, then kept for the item: param1..param4, z (floats), x, y (ints as
-    stored: degrees * 1e7, metres * 1e4 in local frames), lat, lon (degrees, or metres
-    in local frames; NaN where unset).
-    """
+    """One mission item, decoded from its record (what it offers without allocating, and
+    what it makes on first use: docs/services/missions.md)."""
 
     def __init__(self):
         self.rec = bytearray(RECORD_SIZE)

@@ -1,25 +1,14 @@
 """Mission, fence and rally plans in flash: fixed-size records, two slots, atomic commit.
-
-A plan is never held in RAM. Each item is a 32-byte record laid out like the start of
-a MISSION_ITEM_INT payload, so a download copies bytes and an item costs one seek
-and one read:
-    0 param1..param4 (float32 bits)  16 x (int32)  20 y (int32)  24 z (float32 bits)
-   28 command (u16)  30 frame (u8)  31 autocontinue (u8)
-A store keeps two slot files, NAME.0 and NAME.1, both open for its lifetime. The
-plan in force lives in one; a new plan is written into the other and becomes the
-plan in force when its 16-byte header is written, last:
-    0 magic  4 mission_type  5 record size  6 count (u16)  8 generation (u32)
-   12 CRC of the records  14 CRC of header bytes 0..13
-Before staging starts the spare slot's header is zeroed, so a process killed at any
-point leaves the old plan (spare header zero or stale) or the new one (header
-written), never a mix. At boot the valid slot with the higher generation wins; a slot
-with a damaged header or records that is not provably older than the winner makes
-the store corrupt: it is reported, wiped, and the vehicle starts with an empty plan
-(never silently with an older plan the operator had replaced).
-Staging, commit and load() allocate nothing (the files stay open), so a transfer runs
-under micropython.heap_lock(). On a 32-bit port an int of 2^30 or more is a heap object:
-the u32 generation is kept as two 16-bit halves (gen_hi, gen_lo) and the plan id is
-written as bytes (put_plan_id); `gen` and `plan_id` make the ints for other callers.
+A plan is never held in RAM: each item is a 32-byte record laid out like the start of a
+MISSION_ITEM_INT payload, so a download copies bytes and an item costs one seek and one
+read. A store keeps two slot files, NAME.0 and NAME.1, open for its lifetime: the plan
+in force lives in one, a new plan is written into the other and becomes the plan in
+force when its header is written, last, so a process killed at any point leaves the
+old plan or the new one, never a mix. A slot found damaged at boot and not provably
+older than the plan in force makes the store corrupt: reported, wiped, and the vehicle
+starts with an empty plan. Staging, commit and load() allocate nothing (the u32
+generation is kept by 16-bit halves), so a transfer runs under heap_lock().
+Reference (record and header layout): docs/services/missions.md.
 """
 from ...compat import const
 from ...kernels import crc16, zero
@@ -85,7 +74,7 @@ class MissionStore:
 
     @property
     def gen(self):
-        """The generation as one int (a heap object from 2^30 on a 32-bit port)."""
+        """The generation as one int (not on the protocol's paths: see gen_hi, gen_lo)."""
         return self.gen_hi << 16 | self.gen_lo
 
     # --- boot -------------------------------------------------------------------
@@ -105,8 +94,10 @@ class MissionStore:
         self.count = 0
         self.crc = 0xFFFF
         if self.corrupt or best < 0:
-            if self.corrupt:
-                self._wipe()
+            if self.corrupt:  # both headers zeroed
+                zero(self._hdr, 0, HEADER_SIZE)
+                self._safely(self._files[0])
+                self._safely(self._files[1])
             best = 1 if newer else 0  # the higher generation: the next commit goes above both
         else:
             self._active = best
@@ -114,11 +105,6 @@ class MissionStore:
             self.crc = s[5 * best + 4]
         self.gen_hi = s[5 * best + 1]
         self.gen_lo = s[5 * best + 2]
-
-    def _wipe(self):
-        zero(self._hdr, 0, HEADER_SIZE)
-        for f in self._files:
-            self._safely(f)
 
     def _check(self, i):
         """Slot i's state, generation, count and CRC into self._slots."""
@@ -195,7 +181,7 @@ class MissionStore:
     @property
     def plan_id(self):
         """Identifies the plan in force (MAVLink opaque_id): changes with every commit, never 0.
-        An int up to 2^32: on the protocol's paths put_plan_id() writes its bytes instead."""
+        On the protocol's paths put_plan_id() writes its bytes instead."""
         return (self.gen_lo << 16 | self.crc) or 1
 
     def put_plan_id(self, buf, o):
@@ -217,16 +203,13 @@ class MissionStore:
         if f is None:  # no slot file (read-only storage that had none)
             return self._failed()
         try:
-            return self._header_to(f)
+            f.seek(0)
+            if f.write(self._hdr) != HEADER_SIZE:
+                return False
+            f.flush()
+            return True
         except OSError:
             return self._failed()
-
-    def _header_to(self, f):
-        f.seek(0)
-        if f.write(self._hdr) != HEADER_SIZE:
-            return False
-        f.flush()
-        return True
 
     def begin(self, keep=0):
         """Start a new plan in the spare slot, with the first `keep` items of the plan in
@@ -257,9 +240,9 @@ class MissionStore:
 
     def put(self, seq, rec):
         """Write record seq of the staged plan -> done."""
-        # A bare except: `except OSError` needs one more word of frame state, past what
-        # MicroPython keeps on the C stack (this runs per item). Whatever failed, the
-        # staged plan cannot be trusted and the store refuses it.
+        # A bare except: `except OSError` would take this per-item frame past the limit
+        # (docs/design.md). Whatever failed, the staged plan cannot be trusted and the
+        # store refuses it.
         try:
             return self._put(seq, rec)
         except:  # noqa: E722
