@@ -358,7 +358,8 @@ class Status:
 
     # --- producers: send(link) -> bool, a few fields a pack_into (docs/design.md) ---
     def send_heartbeat(self, link):
-        custom = self.modes.custom_for(link, self.modes.row, self.custom_mode)  # as the link's GCS reads it
+        # custom_mode as this link's ground station reads it (modes.py)
+        custom = self.modes.custom_for(link, self.modes.row, self.custom_mode)
         off = link.begin()
         buf = link.txbuf
         pack_into("<I", buf, off, custom)
