@@ -80,8 +80,13 @@ class Missions:
     on_guided = None  # the application's guided go-to (docs/services/missions.md)
 
     def __init__(self, ep):
-        # Few attributes: on a small heap a bigger instance dict may not find room.
+        # Few attributes: on a small heap a bigger instance dict may not find room. The
+        # transfer first: its dict is the biggest made here, before opening the stores'
+        # files leaves gaps in the heap.
         board = getattr(ep, "board", None)
+        self.transfer = Upload(self, ep.setting("MISSION_WINDOW", 8), ep.setting("MISSION_RETRY_MS", 250),
+                               ep.setting("MISSION_RTO_MIN_MS", 20), ep.setting("MISSION_RTO_MAX_MS", 1000),
+                               ep.setting("MISSION_RETRIES", 5))
         capacities = (ep.setting("MISSION_CAPACITY", 500), ep.setting("FENCE_CAPACITY", 100),
                       ep.setting("RALLY_CAPACITY", 20))
         self.stores = [None, None, None]
@@ -94,9 +99,6 @@ class Missions:
         for command in getattr(board, "MISSION_COMMANDS", ()):
             self.allow(command)
         self.rec = bytearray(RECORD_SIZE)  # the record of the item in hand
-        self.transfer = Upload(self, ep.setting("MISSION_WINDOW", 8), ep.setting("MISSION_RETRY_MS", 250),
-                               ep.setting("MISSION_RTO_MIN_MS", 20), ep.setting("MISSION_RTO_MAX_MS", 1000),
-                               ep.setting("MISSION_RETRIES", 5))
         # The upload that completed last, to answer a repeat of its final item.
         self.done_link = None
         self.done_key = -1  # sysid << 16 | compid << 8 | mission_type
