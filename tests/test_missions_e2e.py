@@ -239,20 +239,26 @@ def test_list_spam_cannot_block_the_ground_station_in_control(vehicle):
     b = v.gcs(port=p2, source_system=254)
     a.mav.change_operator_control_send(1, 0, 0, b"pw")
     assert recv(a, "CHANGE_OPERATOR_CONTROL_ACK", 5).ack == 0
+    c = MissionClient(a)
+    assert c.upload(plan(50)) == ACCEPTED  # a plan stored: b's lists are downloads under way
     stop = threading.Event()
+    listed = threading.Event()  # b's download is under way: the uploads must take it over
     told = []
 
     def spam():
         while not stop.is_set():
             b.mav.mission_request_list_send(1, 1, 0)
-            msg = b.recv_match(type="MISSION_ACK", blocking=True, timeout=0.02)
+            msg = b.recv_match(type=["MISSION_ACK", "MISSION_COUNT"], blocking=True, timeout=0.02)
             if msg is not None and msg.target_system == 254:
-                told.append(msg.type)
+                if msg.get_type() == "MISSION_ACK":
+                    told.append(msg.type)
+                elif msg.count:
+                    listed.set()
 
     t = threading.Thread(target=spam, daemon=True)
     t.start()
     try:
-        c = MissionClient(a)
+        assert listed.wait(10)
         results = [c.upload(plan(50, tag=k + 1)) for k in range(5)]
     finally:
         stop.set()
