@@ -72,7 +72,7 @@ def storage(address, size):
 
 
 def transports():
-    from mavstack.transport.qemu_uart import UartTransport
+    from mavstack.qemu import UartTransport
 
     return [UartTransport(BAUD)]
 

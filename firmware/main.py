@@ -11,7 +11,7 @@ import sys
 
 from mavstack.compat import ticks_ms, ticks_diff, sleep_ms
 from mavstack.endpoint import Endpoint, Reboot, Shutdown
-from mavstack.services import BoardError, compose
+from mavstack.services import compose
 from mavstack.storage import Storage
 from mavstack.transport import open_transport
 
@@ -78,7 +78,10 @@ def build(board, opts):
     else:
         for transport in board.transports():
             ep.add_link(transport)
-    compose(ep, board.SERVICES)  # each after the services it needs (or a BoardError)
+    why = compose(ep, board.SERVICES)  # each after the services it needs
+    if why:  # the profile's SERVICES are wrong: say so in one line, and stop
+        print("mavstack: board %s: %s" % (board.NAME, why))
+        sys.exit(1)
     # --set application=0: the stack alone (the unix simulator allocates, so a soak under
     # heap_lock runs without it).
     app = board.application(ep) if hasattr(board, "application") and ep.setting("APPLICATION", True) else None
@@ -158,11 +161,7 @@ def main(argv):
     opts = parse_args(argv)
     board = load_board(opts["board"])
     while True:
-        try:
-            ep, app = build(board, opts)
-        except BoardError as e:  # the profile's SERVICES are wrong: say so in one line
-            print("mavstack: board %s: %s" % (board.NAME, e))
-            sys.exit(1)
+        ep, app = build(board, opts)
         try:
             run(ep, app)
         except Reboot:

@@ -14,7 +14,7 @@ from hypothesis import given, settings, strategies as st
 
 from conftest import FIRMWARE, MICROPYTHON, ROOT, run_mpy
 from mavstack.services.missions.store import HEADER_SIZE, RECORD_SIZE, MissionStore
-from mavstack import units as service
+from mavstack import fields as service
 from mavstack.storage import Storage
 
 TESTS_MPY = os.path.join(ROOT, "tests", "mpy")
@@ -281,7 +281,7 @@ FIXED = (473977420, -85455940, 1, -1, 2147483647, -2147483648, 0, -1224000000, 1
 def test_conversions_agree_on_micropython():
     code = (
         "import struct\n"
-        "from mavstack import units as m\n"
+        "from mavstack import fields as m\n"
         "out = []\n"
         "for v in %r:\n"
         "    for local in (False, True):\n"

@@ -238,7 +238,9 @@ class Bench:
             ep.storage = Storage(storage)
         self.vehicle_end, self.gcs_end = loop_pair(ring)
         ep.add_link(self.vehicle_end)
-        compose(ep, services)
+        why = compose(ep, services)
+        if why:
+            raise ValueError(why)
         self.ep = ep
         self.app = app(ep) if app is not None else None
         self.version = version

@@ -21,7 +21,7 @@ from mavstack.dialects import common
 from mavstack.encoder import Encoder
 from mavstack.kernels import crc16, IMPL
 from mavstack.parser import Parser, COUNT_WRAP
-from mavstack.transport.qemu_uart import UartTransport
+from mavstack.qemu import UartTransport
 from wire_kinds import pack_frame
 
 import sys

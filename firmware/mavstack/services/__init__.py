@@ -9,19 +9,17 @@ compose() checks the first two and refuses a board that breaks them with one lin
 import gc
 
 
-class BoardError(Exception):
-    """A board profile that cannot be built; str() is the one line to show its author."""
-
-
 def compose(ep, names):
-    """Attach the services `names` (a board's SERVICES) in order."""
+    """Attach the services `names` (a board's SERVICES) in order -> None, or the one line
+    that says why the board cannot be built (the services before it are attached)."""
     for i in range(len(names)):
         gc.collect()  # keep the heap unfragmented while each service loads
         module = __import__("mavstack.services." + names[i], None, None, ("create",))
         why = misplaced(module, names, i)
         if why:
-            raise BoardError(why)
+            return why
         module.create(ep)
+    return None
 
 
 def misplaced(module, names, i):

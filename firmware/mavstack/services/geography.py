@@ -10,10 +10,9 @@ import struct
 from struct import pack_into
 
 from ..compat import const
-from ..fields import i32_cmp, f32_is_nan
+from ..fields import LOCAL_FRAMES, f32_is_nan, fix, i32_cmp, unset
 from ..kernels import copy
 from ..storage import save_sealed, sealed
-from ..units import LOCAL_FRAMES, fix, unset
 from ..statustext import WARNING
 
 _FRAME_LOCAL_NED = const(1)

@@ -7,10 +7,9 @@ the relays go out as NAMED_VALUE_INT "RELAYS" and the table in SERVO_OUTPUT_RAW.
 Reference (the commands' parameters, settings, telemetry): docs/services/seed.md.
 """
 from ..compat import const, ticks_diff
-from ..fields import i32
+from ..fields import fix, i32
 from ..kernels import copy
 from .commands import Command
-from ..units import fix
 from ..statustext import WARNING
 
 NEEDS = ("commands",)  # its commands

@@ -1,7 +1,7 @@
 """Byte transports a link runs over. Each is loaded only where a board uses it, to spare
 a small board's heap: udp.py (UDP to a ground station), udpin.py (the UDP server ground
-stations call), serial.py (a tty or pty, or a board's machine.UART), qemu_uart.py (the
-emulated boards' UART).
+stations call), serial.py (a tty or pty, or a board's machine.UART); the emulated
+boards' UART is in ../qemu.py with their clock.
 
 Every transport has the same small, non-blocking, allocation-free face:
     readinto(buf) -> bytes read (0 when none)

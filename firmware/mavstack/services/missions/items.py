@@ -11,9 +11,8 @@ and the transfer under way). Reference: docs/services/missions.md.
 import gc
 
 from ...compat import const
-from ...fields import u16, i32_cmp, f32_is_nan, f32_to_small
+from ...fields import LOCAL_FRAMES, f32_is_nan, f32_to_small, fix, i32_cmp, u16, unset
 from ...kernels import copy, zero
-from ...units import LOCAL_FRAMES, fix, unset
 
 # Loading a module from a .mpy leaves the loader's garbage between the code it kept:
 # collect it now, so that what comes next finds room on a small heap.

@@ -11,9 +11,8 @@ its floats are made when first asked for. Reference: docs/services/missions.md.
 import struct
 
 from ...compat import const, ticks_diff
-from ...fields import f32_to_small, i16, u16
+from ...fields import LOCAL_FRAMES, f32_to_small, i16, u16
 from ...kernels import copy
-from ...units import LOCAL_FRAMES
 from .store import RECORD_SIZE
 
 NO_MISSION = const(1)  # MISSION_STATE

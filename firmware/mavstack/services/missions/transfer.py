@@ -10,9 +10,8 @@ so that nothing is made per transfer. Reference: docs/services/missions.md.
 import gc
 
 from ...compat import const
-from ...fields import u16
+from ...fields import LOCAL_FRAMES, u16, unfix
 from ...kernels import copy
-from ...units import LOCAL_FRAMES, unfix
 
 # Loading a module from a .mpy leaves the loader's garbage between the code it kept:
 # collect it now, so that what comes next finds room on a small heap.
