@@ -57,7 +57,7 @@ class World:
         self.delay_ms = delay_ms  # the most a frame is held back
         # ... a mission item toward the vehicle (long: into the next upload). Nothing
         # tells a MISSION_COUNT held back past the end of its transfer from a restarted
-        # ground station's first one (mission_upload.py): those keep to delay_ms.
+        # ground station's first one (services/missions/upload.py): those keep to delay_ms.
         self.hold_ms = delay_ms if hold_ms is None else hold_ms
         self.stall = stall  # chance per ms that the vehicle stops for 0.1 .. 3 s
         self.now = 0  # ms

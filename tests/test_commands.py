@@ -16,7 +16,7 @@ sys.path.insert(0, os.path.join(ROOT, "tests", "mpy"))
 from harness import Bench  # noqa: E402
 
 ARMED = 128
-HOME = (473977420, 85455940, 488000)  # firmware/simulator.py
+HOME = (473977420, 85455940, 488000)  # firmware/sim/motion.py
 NAN = float("nan")
 INF = float("inf")
 

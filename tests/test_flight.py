@@ -1,4 +1,4 @@
-"""The simulated vehicle flies what its pilot asks (firmware/sim_pilot.py), seen by a
+"""The simulated vehicle flies what its pilot asks (firmware/sim/pilot.py), seen by a
 pymavlink ground station over UDP: takeoff, hold, land, reposition, speed, RTL, mode
 changes with the same effect as the commands, MISSION_START, failsafes, and telemetry
 telling the truth throughout (EXTENDED_SYS_STATE landed_state, HEARTBEAT system_status,

@@ -11,7 +11,7 @@ from gcs_tools import MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MavProxy, listen, 
 
 PREARM_CHECK = 0x10000000  # MAV_SYS_STATUS_PREARM_CHECK
 GEOFENCE = 0x100000  # MAV_SYS_STATUS_GEOFENCE
-SIM_SENSORS = 1 | 2 | 4 | 8 | 32 | 1024 | 2048 | 4096 | 8192 | 16384 | 32768  # firmware/simulator.py
+SIM_SENSORS = 1 | 2 | 4 | 8 | 32 | 1024 | 2048 | 4096 | 8192 | 16384 | 32768  # firmware/sim/__init__.py
 
 
 

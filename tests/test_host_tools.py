@@ -1,4 +1,4 @@
-"""host_tools/flash.py builds the file tree a board gets (the unix vehicle runs from it),
+"""mavctl flash (host_tools/mavctl/flash_*.py) builds the file tree a board gets (the unix vehicle runs from it),
 and mavctl (the command `make setup` installs) drives the real unix vehicle over UDP and
 over a serial line (two ptys joined by a relay thread, as a USB radio pair joins two
 computers)."""
@@ -94,7 +94,7 @@ def gcs_link(vehicle):
     return start
 
 
-# --- flash.py -----------------------------------------------------------------------
+# --- flash --------------------------------------------------------------------------
 
 def stack_modules(with_meta=False):
     """The tree paths of the stack's modules a common-dialect board gets."""

@@ -1,5 +1,5 @@
-"""Pilot inputs (services/inputs.py) over UDP with pymavlink, and the simulated pilot
-(firmware/sim_inputs.py) on a fake simulator.
+"""Pilot inputs (services/inputs/) over UDP with pymavlink, and the simulated pilot
+(firmware/sim/inputs.py) on a fake simulator.
 
 The service: setpoints answered with their target messages (the fields as sent, the
 type_mask and frame kept), in today's message set and the seed's; messages for another

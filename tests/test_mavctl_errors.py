@@ -189,7 +189,7 @@ def test_plugins_missing_or_broken(tmp_path, monkeypatch):
 
 
 def test_flash_is_a_subcommand(tmp_path):
-    """`mavctl flash` takes flash.py's options, its help and its refusals."""
+    """`mavctl flash` takes flash_build.py's options, its help and its refusals."""
     r = mavctl("flash", "--board", "unix", "--arch", "x64", "--build-only", tmp_path / "tree")
     assert r.returncode == 0 and "files" in r.stdout, (r.stdout, r.stderr)
     assert os.path.isfile(tmp_path / "tree" / "main.py")

@@ -136,13 +136,13 @@ def _build_lean(out, flags=()):
         dest = out / "mpy" / rel
         dest.parent.mkdir(parents=True, exist_ok=True)
         # The source name is embedded (and interned on load): keep it short and the same
-        # wherever the repository is checked out, as flash.py does.
+        # wherever the repository is checked out, as mavctl flash does.
         cmd = [MPY_CROSS, *flags, "-s", rel[:-4] + ".py", "-o", str(dest), path]
         with open(path) as f:
             native = "@micropython.viper" in f.read()
         if native:
             if arch is None:
-                continue  # kernels.py falls back to the portable ones
+                continue  # mavstack.kernels falls back to the portable ones
             cmd.insert(1, "-march=" + arch)
         subprocess.run(cmd, check=True, capture_output=True)
     return out / "mpy"

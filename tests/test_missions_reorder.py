@@ -1,7 +1,7 @@
 """Frames held back across transfers: MISSION_ITEM(_INT) names no upload, so a copy of an
 earlier upload's item (or MISSION_COUNT) that a link held back must not be taken into
 the next upload. The vehicle tells them by the sender's packet sequence number
-(parser.late_at, mission_upload.py). These tests send such frames by hand, then run
+(parser.late_at, services/missions/upload.py). These tests send such frames by hand, then run
 the fault test's lossy link (lossy_world.py) on a simulated clock for many rounds,
 where an accepted upload must be stored exactly, and any other outcome leave the old
 plan or the new."""

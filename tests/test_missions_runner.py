@@ -1,4 +1,4 @@
-"""Mission execution support (mavstack/services/mission_runner.py): the order items come in with
+"""Mission execution support (mavstack/services/missions/runner.py): the order items come in with
 DO_JUMPs, MISSION_START's range, autocontinue, the CONDITION items handed to the
 application, and the reports ground stations see. In-process on CPython, then the
 unix vehicle flying a mission in AUTO."""

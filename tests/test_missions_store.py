@@ -1,4 +1,4 @@
-"""The flash-backed plan store (mavstack/services/mission_store.py): records, two slots, atomic
+"""The flash-backed plan store (mavstack/services/missions/store.py): records, two slots, atomic
 commit, corruption detection; and the exact float <-> fixed-point conversions of the
 seed's MISSION_ITEM. The kill test commits plans on MicroPython and SIGKILLs it at
 random moments, then boots the store after each kill."""
