@@ -1,6 +1,7 @@
 """Allocation-free reads of little-endian fields from a payload view, and coordinates
 converted in place between MISSION_ITEM's float32 degrees (metres in local frames) and
 MISSION_ITEM_INT's int32 1e7 degrees (1e4 metres), exactly, with small ints only.
+Text fields as str, for the rare paths that need them, without ever raising.
 
 struct.unpack_from builds a tuple (and floats are heap objects on MicroPython), so
 per-frame handlers read integers byte by byte and test floats by their bits.
@@ -34,16 +35,38 @@ def f32_is_nan(p, o):
     return (p[o + 3] & 0x7F) == 0x7F and (p[o + 2] & 0x80) and ((p[o + 2] & 0x7F) or p[o + 1] or p[o])
 
 
-def f32_bits(p, o):
-    return u32(p, o)
-
-
 def cstr_len(p, o, n):
     """Length of a NUL-padded char[n] field (no NUL needed when it fills n)."""
     for i in range(n):
         if p[o + i] == 0:
             return i
     return n
+
+
+def cstr_text(p, o, n):
+    """The NUL-padded char[n] field at p[o] as str, never raising: each ill-formed UTF-8
+    sequence in it (its longest valid start, or one byte) becomes one U+FFFD, as CPython's
+    errors="replace" does (MicroPython's decode ignores errors, and raises). Allocates."""
+    end = o + cstr_len(p, o, n)
+    out = bytearray()
+    i = run = o  # p[run:i]: well-formed so far
+    while i < end:
+        b = p[i]
+        want = 1 if b < 0x80 else 0 if b < 0xC2 or b > 0xF4 else 2 if b < 0xE0 else 3 if b < 0xF0 else 4
+        lo = 0xA0 if b == 0xE0 else 0x90 if b == 0xF0 else 0x80  # no overlong forms
+        hi = 0x9F if b == 0xED else 0x8F if b == 0xF4 else 0xBF  # no surrogates, none past U+10FFFF
+        k = 1
+        while k < want and i + k < end and lo <= p[i + k] <= hi:
+            k += 1
+            lo = 0x80
+            hi = 0xBF
+        if k != want:
+            out += p[run:i]
+            out += b"\xef\xbf\xbd"
+            run = i + k
+        i += k
+    out += p[run:end]
+    return str(out, "utf-8")
 
 
 def f32_to_int(p, o):
