@@ -11,6 +11,7 @@ import sys
 
 from mavstack.compat import ticks_ms, ticks_diff, sleep_ms
 from mavstack.endpoint import Endpoint, Reboot, Shutdown
+from mavstack.faults import APP
 from mavstack.services import compose
 from mavstack.storage import Storage
 from mavstack.transport import open_transport
@@ -105,6 +106,7 @@ def run(ep, app=None, period_ms=1):
     # Sleeping through status.idle lets it measure the loop's load for SYS_STATUS.
     status = ep.services.get("status")
     idle = status.idle if status is not None else sleep_ms
+    faults = ep.faults
     # HEAP_LOCK (--set heap_lock=1): the loop must not allocate, and a MemoryError
     # says where it did.
     lock = ep.setting("HEAP_LOCK", False) and hasattr(gc, "mem_alloc")
@@ -125,7 +127,9 @@ def run(ep, app=None, period_ms=1):
             now = ticks_ms()
             ep.poll(now)
             if app is not None:
-                app.tick(now)
+                faults.tick(app, now)  # the application raising is a fault, not the end
+                if faults.error is not None:
+                    faults.count(APP, 0)
             if report_ms and ticks_diff(now, _REPORT[1]) >= report_ms:
                 _REPORT[1] = now
                 _heap_report(lock)

@@ -445,7 +445,12 @@ def test_failing_handler_gives_failed_and_the_vehicle_goes_on(capsys):
     b.send(g.command(31012))
     b.run(1)
     assert b.ack_result == MAV_RESULT_FAILED
-    assert "ZeroDivisionError" in capsys.readouterr().err
+    b.run(5)  # the report goes out with the next STATUSTEXT the status service sends
+    # A contained fault: counted, told in one line and a STATUSTEXT, no traceback.
+    out = capsys.readouterr()
+    assert "mavstack: Fault: cmd 31012: ZeroDivisionError (1)" in out.out and "Traceback" not in out.err
+    assert b.ep.faults.counts[1] == 1  # faults.COMMAND
+    assert b.seen[253] >= 1  # STATUSTEXT
     b.send(g.command(400, 1.0))
     b.run(1)
     assert b.ack_result == MAV_RESULT_ACCEPTED and b.ep.services["status"].armed

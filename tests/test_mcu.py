@@ -135,6 +135,7 @@ STEADY = (
     ("status_steady.py", ["status,commands", "-", 3000]),
     ("inputs_steady.py", [1500]),  # every pilot input, loss, echoes, HIL_CONTROLS
     ("seed_steady.py", ["common", 3]),  # geography, debug, servos, auth, calibration, seed commands
+    ("faults_steady.py", [100]),  # a raising handler and tick: contained, params/missions/streams go on
 )
 
 

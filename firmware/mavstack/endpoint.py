@@ -6,6 +6,7 @@ ids it handles with `on()`, and, if it has periodic work, a `tick(now_ms)`.
 Reference: docs/core.md.
 """
 from .compat import ticks_ms
+from .faults import Faults, MESSAGE, TICK, LINK
 from .link import Link
 
 
@@ -32,8 +33,9 @@ class Endpoint:
         self.links = []
         self.now = self._born = ticks_ms()
         self._handlers = {}  # msgid -> (handler(link, payload), ...)
-        self._tickers = []
+        self.tickers = []  # services with periodic work, in the order they were added
         self.services = {}
+        self.faults = Faults(self, (Reboot, Shutdown))  # what a handler or tick raised: faults.py
         # Shared between services, filled as they attach:
         self.capabilities = 0  # MAV_PROTOCOL_CAPABILITY bits for AUTOPILOT_VERSION
         self.producers = {}  # msgid -> send(link): one message now (REQUEST_MESSAGE, streams)
@@ -68,7 +70,7 @@ class Endpoint:
             self.clock  # made now, at start-up, rather than on a hot path
         service.attach(self)
         if hasattr(service, "tick"):
-            self._tickers.append(service)
+            self.tickers.append(service)
         return service
 
     def on(self, msgid, handler):
@@ -116,27 +118,43 @@ class Endpoint:
             status.statustext(severity, text)
 
     def dispatch(self, link, msgid, payload):
+        """Hand a frame to its handlers; one that raises is a fault (counted, reported)
+        and the frame goes on to the others."""
         handlers = self._handlers.get(msgid)
         if handlers is not None:
+            self.faults.payload = payload
             i = 0  # by index: see docs/design.md
             while i < len(handlers):
-                handlers[i](link, payload)
+                self.faults.deliver(handlers[i], link)
+                if self.faults.error is not None:
+                    self.faults.count(MESSAGE, msgid)
                 i += 1
 
     def poll(self, now=None):
-        """One pass of the main loop: read every link, then run due service work.
+        """One pass of the main loop: read every link, then run due service work. A link
+        or a service that raises is a fault: the others go on.
 
         Never blocks; call it from a plain loop or wrap it in asyncio.
         """
         if now is None:
             now = ticks_ms()
         self.now = now
-        for link in self.links:
-            link.poll()
+        faults = self.faults
+        i = 0
+        while i < len(self.links):
+            faults.poll(self.links[i])
+            if faults.error is not None:
+                faults.count(LINK, i)
+            i += 1
         if self._clock is not None:
             self._clock.advance(now)
-        for svc in self._tickers:
-            svc.tick(now)
+        i = 0
+        while i < len(self.tickers):
+            faults.tick(self.tickers[i], now)
+            if faults.error is not None:
+                faults.count(TICK, i)
+            i += 1
+        faults.report(now)
 
     def close(self):
         for link in self.links:

@@ -13,6 +13,7 @@ import struct
 
 from ..compat import const, ticks_diff
 from ..fields import u16, i32, f32_is_nan, f32_to_int
+from ..faults import COMMAND
 from ..kernels import crc16
 
 _MSG_COMMAND_INT = const(75)
@@ -113,41 +114,12 @@ class Pending:
         self.service.ack(self, result, 100, result_param2)
 
 
-class _Guard:
-    """guard.run(handler, cmd): what the handler returned, or FAILED if it raised an
-    Exception, which is then kept in guard.error (None otherwise).
-
-    A with statement on itself rather than try/except ... as e, which would make a large
-    frame on every call (docs/design.md).
-    """
-
-    def __init__(self):
-        self.error = None
-        self.result = MAV_RESULT_FAILED
-
-    def run(self, handler, cmd):
-        with self:
-            self.result = handler(cmd)
-        return self.result
-
-    def __enter__(self):
-        self.error = None
-
-    def __exit__(self, kind, e, tb):
-        self.error = e
-        if isinstance(e, Exception):
-            self.result = MAV_RESULT_FAILED
-            return True
-        return False
-
-
 class Commands:
     NAME = "commands"
 
     def __init__(self):
         self.cmd = Command()
         self.cmd._service = self
-        self._guard = _Guard()
         self._last_key = -1  # crc of the last command's sender + payload, if it ran
         self._pending_key = -1  # ... of the deferred command still IN_PROGRESS
         self._last_ms = 0
@@ -230,11 +202,9 @@ class Commands:
         if handler is None:
             result = MAV_RESULT_UNSUPPORTED
         else:
-            result = self._guard.run(handler, cmd)
-            if self._guard.error is not None:  # a faulty handler must not take the vehicle down
-                self.failed += 1
-                _report(self._guard.error)
-                cmd.reply = -1
+            result = self.ep.faults.run(handler, cmd)
+            if self.ep.faults.error is not None:
+                result = self._failed(cmd)
         # Only a command that ran is remembered; a refused one may simply be tried again.
         ran = result == MAV_RESULT_ACCEPTED or result == MAV_RESULT_IN_PROGRESS
         self._last_key = cmd.key if ran else -1
@@ -247,6 +217,13 @@ class Commands:
         self._last_reply_all = cmd.reply_all
         self.ack(cmd, result, 0, cmd.result_param2)
         self._send_reply(cmd.link, cmd.reply, cmd.reply_all)
+
+    def _failed(self, cmd):
+        """The handler raised: a fault (counted, reported), and the command FAILED."""
+        self.ep.faults.count(COMMAND, cmd.command)
+        self.failed += 1
+        cmd.reply = -1
+        return MAV_RESULT_FAILED
 
     def settle(self, key, result, result_param2):
         """A deferred command finished: a retry now gets its final result."""
@@ -299,17 +276,6 @@ class Commands:
             buf[off + 8] = to.sysid
             buf[off + 9] = to.compid
         to.link.send(_MSG_COMMAND_ACK)
-
-
-def _report(e):
-    try:
-        import sys
-
-        sys.print_exception(e)
-    except AttributeError:  # CPython
-        import traceback
-
-        traceback.print_exception(e)
 
 
 def command_id(name):

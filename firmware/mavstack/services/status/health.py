@@ -151,7 +151,8 @@ class Health:
 
     # --- producer: send(link) -> bool -------------------------------------------------
     def send_sys_status(self, link):
-        # "<IIIHHhHHHHHHb", a few fields a pack_into (docs/design.md); errors_count2..4 stay 0.
+        # "<IIIHHhHHHHHHb", a few fields a pack_into (docs/design.md); errors_count2..4 are
+        # the faults contained (faults.py): handlers, periodic work, application and links.
         off = link.tx.clear(link.tx.crc_len[_MSG_SYS_STATUS] >> 16)
         buf = link.txbuf
         pack_into("<III", buf, off, self.status.sensors_present, self.status.sensors_enabled,
@@ -162,12 +163,25 @@ class Health:
         pack_into("<HHh", buf, off + 12, self.status.load, self.status.voltage_mv, self.status.current_ca)
         pack_into("<HH", buf, off + 18, self.status.drop_rate_comm, self.status.errors_comm)
         pack_into("<H", buf, off + 22, self.status.texts.dropped & 0xFFFF)  # errors_count1
+        _faults(buf, off + 24, self.status.ep.faults.counts)
         pack_into("<b", buf, off + 30, self.status.battery_remaining)
         return link.send(_MSG_SYS_STATUS)
 
 
 def _capped(n):
     return n if n < 0xFFFF else 0xFFFF
+
+
+def _faults(buf, o, counts):
+    # errors_count2..4 from faults.counts (by kind, in pairs: faults.MESSAGE and COMMAND,
+    # TICK and PRODUCER, APP and LINK), each capped at UINT16_MAX.
+    i = 0
+    while i < 6:
+        n = _capped(counts[i] + counts[i + 1])
+        buf[o] = n & 0xFF
+        buf[o + 1] = n >> 8
+        o += 2
+        i += 2
 
 
 def _merge(buf, o, bits):

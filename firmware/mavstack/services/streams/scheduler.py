@@ -7,6 +7,7 @@ Reference: docs/services/streams.md.
 """
 from ...link import TX_WRAP, RANK_BULK, RANK_AUTO
 from ...compat import const, ticks_diff, ticks_add
+from ...faults import PRODUCER
 
 MAX_INTERVAL_US = const(1000000000)  # below 2^30; also the most a fit stretches to
 
@@ -147,8 +148,10 @@ def _send(ls, s):
     before = link.tx_bytes
     held = link.tx_held + link.tx_dropped
     link.rank = RANK_BULK
-    ok = s.send(link)
+    ok = link.endpoint.faults.run(s.send, link)  # a producer that raises is a fault: not sent
     link.rank = RANK_AUTO
+    if ok is None and link.endpoint.faults.error is not None:
+        link.endpoint.faults.count(PRODUCER, s.msgid)
     if ok:
         _sent(ls, s, before)
     elif link.tx_held + link.tx_dropped != held:
