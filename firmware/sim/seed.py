@@ -8,6 +8,7 @@ import math
 import struct
 
 from mavstack.compat import ticks_diff
+from mavstack.fields import cstr_text
 
 _ACCEPTED = 0
 _DENIED = 2
@@ -141,7 +142,7 @@ def _debug_text(msgid, p):
 
 
 def _name(p, o):
-    return bytes(p[o:o + 10]).split(b"\0")[0].decode("utf-8", "replace")
+    return cstr_text(p, o, 10)  # a char[10] as sent: any bytes, UTF-8 or not
 
 
 def _mission_items(ep, sim):
