@@ -11,6 +11,7 @@ Reference: docs/services/ftp.md.
 import os
 
 from ...compat import MICROPYTHON
+from ...fields import cstr_text
 
 # Files of params (params/store.py's FILE), missions (their _NAMES: NAME.0, NAME.1) and
 # signing (signing.py's _FILE), by the part of their name before the first dot.
@@ -71,16 +72,15 @@ class Folder:
         return name.split(".")[0] in self.protected
 
     def parts(self, raw, absolute_ok):
-        """The names of a path (bytes, NUL-terminated or not) -> list, or BAD.
+        """The names of a path (bytes, NUL-terminated or not) -> list, or BAD (not UTF-8 too).
 
         absolute_ok: a leading "/" is the folder itself (MAVLink FTP's root), else an
         absolute path is refused (the seed's "bad path")."""
         end = raw.find(b"\0")
         if end >= 0:
             raw = raw[:end]
-        try:
-            path = raw.decode()
-        except UnicodeError:
+        path = cstr_text(raw, 0, len(raw))
+        if path.encode() != raw:  # not UTF-8 (replaced): refused, not renamed
             return BAD
         if path.startswith("/") and not absolute_ok:
             return BAD
