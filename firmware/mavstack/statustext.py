@@ -8,6 +8,7 @@ Reference: docs/core.md.
 import struct
 
 from .compat import const
+from .fields import cstr_text
 
 _MSG_STATUSTEXT = const(253)
 _TEXT_LEN = const(50)
@@ -60,19 +61,17 @@ class TextQueue:
 
     def text(self, i=0):
         """The i-th oldest queued text as str (for tests and consoles; allocates)."""
-        buf = self.texts[(self.head + i) % len(self.texts)]
-        n = 0
-        while n < _TEXT_LEN and buf[n]:
-            n += 1
-        return bytes(buf[:n]).decode()
+        return cstr_text(self.texts[(self.head + i) % len(self.texts)], 0, _TEXT_LEN)
 
 
 def _fill(buf, text):
-    """buf := text, cut to buf's length and NUL-padded (a helper of its own, with while
-    loops: docs/design.md)."""
+    """buf := text, cut to buf's length (before a UTF-8 character, not inside it) and
+    NUL-padded (a helper of its own, with while loops: docs/design.md)."""
     n = len(text)
     if n > len(buf):
         n = len(buf)
+        while n > len(buf) - 3 and text[n] & 0xC0 == 0x80:  # text[n] continues a character
+            n -= 1
     j = 0
     while j < n:
         buf[j] = text[j]
