@@ -41,8 +41,10 @@ def skip_reason():
 class EmulatedBoard:
     DEFAULT_HEAP_KB = firmware.DEFAULT_HEAP_KB
 
-    def __init__(self, board, heap_kb=firmware.DEFAULT_HEAP_KB, manifest=None, boot_timeout=20):
+    def __init__(self, board, heap_kb=firmware.DEFAULT_HEAP_KB, manifest=None, boot_timeout=20,
+                 qemu_args=()):
         self.board = board
+        self.qemu_args = list(qemu_args)  # appended to qemu-system-arm's (bench_mcu_ingest.py)
         self.elf = firmware.build(board, heap_kb, manifest=manifest)
         self.uarts = 2 if board == "qemu_m3" else 1
         self.boot_timeout = boot_timeout
@@ -53,7 +55,7 @@ class EmulatedBoard:
     def __enter__(self):
         from mpremote.transport_serial import SerialTransport
 
-        cmd = firmware.qemu_command(self.board, self.elf, ["pty"] * self.uarts)
+        cmd = firmware.qemu_command(self.board, self.elf, ["pty"] * self.uarts) + self.qemu_args
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         while len(self.ptys) < self.uarts:
             line = self.proc.stdout.readline()
