@@ -1,6 +1,9 @@
 """The unix vehicle's services in-process on CPython, on an in-memory link, for the fuzzer:
 its board profile (boards/unix.py) with signing added and the simulator as application,
-storing under a directory, driven poll by poll on a simulated clock.
+storing under a directory, driven poll by poll on a simulated clock. `whole=True` builds
+every service of the `make run` board (and the seed's extras of its application) in either
+dialect, at a UDP link's budget: the vehicle the MicroPython engine fuzzes (live.py), in
+process, for the list of what it handles and for the corpus' replay (replay.py).
 
 Between fuzzed batches a ground station runs real exchanges that must still succeed
 (`param_exchange`, `mission_exchange`, `command_exchange`); they sign their frames with
@@ -21,6 +24,7 @@ for _p in (os.path.join(ROOT, "firmware"), os.path.join(ROOT, "boards"), os.path
 from harness import Bench  # noqa: E402
 from mavstack.compat import ticks_add  # noqa: E402
 from mavstack.endpoint import Reboot, Shutdown  # noqa: E402
+from mavstack.services import compose  # noqa: E402
 from pymavlink.dialects.v20 import common as mavlink2  # noqa: E402
 
 from fuzz import frames  # noqa: E402
@@ -51,8 +55,10 @@ def _simulator(ep):
 
 
 class FuzzVehicle:
-    def __init__(self, storage, seed=1):
+    def __init__(self, storage, seed=1, dialect="common", whole=False):
         self.storage = str(storage)
+        self.dialect = dialect
+        self.whole = whole
         self.rng = random.Random(seed)
         self.reboots = 0
         self._seq = 0
@@ -68,14 +74,23 @@ class FuzzVehicle:
     def build(self):
         # The services are added here rather than by Bench, after the link is given a
         # radio's budget: the streams then send what a radio would carry, not 200 KB/s.
-        self.bench = Bench(services=(), board=_board(), storage=self.storage, ring=16384)
+        board = _board()
+        table = __import__("mavstack.dialects." + self.dialect, None, None, ("CRC_LEN",))
+        self.bench = Bench(services=(), board=board, storage=self.storage, ring=16384, dialect=table,
+                           options={"dialect": self.dialect})
         self.bench.drain = self._drain
         self.ep = self.bench.ep
         link = self.ep.links[0]
-        link.bytes_per_s = link.transport.bytes_per_s = LINK_BYTES_PER_S
-        for name in SERVICES:
-            __import__("mavstack.services." + name, None, None, ("create",)).create(self.ep)
-        self.bench.app = _simulator(self.ep)
+        if not self.whole:
+            link.bytes_per_s = link.transport.bytes_per_s = LINK_BYTES_PER_S
+        if self.whole:
+            why = compose(self.ep, ("signing",) + board.SERVICES)
+            if why:
+                raise ValueError(why)
+        else:
+            for name in SERVICES:
+                __import__("mavstack.services." + name, None, None, ("create",)).create(self.ep)
+        self.bench.app = board.application(self.ep) if self.whole else _simulator(self.ep)
         self.now = self.bench.now
         self.params = self.ep.services["params"]
         self.missions = self.ep.services["missions"]
@@ -83,7 +98,7 @@ class FuzzVehicle:
         self.signing = self.ep.services["signing"]
         self.structured = frames.Structured(self.ep._handlers, self.ep.commands,
                                             [self.params.name(i) for i in range(self.params.count)],
-                                            self.ep.sysid, self.ep.compid)
+                                            self.ep.sysid, self.ep.compid, frames.layouts(self.dialect))
 
     def reboot(self):
         """What main.py does on Reboot: let the old vehicle go, build it again."""
