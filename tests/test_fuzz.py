@@ -93,3 +93,21 @@ def test_sharp_turn_in_auto_keeps_the_vehicle_running(tmp_path):
     status.mode |= MODE_AUTO
     for _ in range(3000):  # 60 s: out to the first waypoint, then the turn back
         v.bench.run(1, 20)
+
+
+def test_debug_values_keep_a_bounded_number_of_names(tmp_path):
+    # Found by the fuzzer (the MicroPython engine, seed2012): the simulator kept every debug
+    # value by its name, and names are whatever arrives; a few thousand DEBUG_VECTs of
+    # random names took the unix vehicle's heap (MemoryError in the handler, contained).
+    from sim import seed as sim_seed
+
+    v = FuzzVehicle(tmp_path / "st", dialect="seed2012", whole=True)
+    lay = frames.layouts("seed2012")[250]  # DEBUG_VECT
+    rng = random.Random(5)
+    for i in range(300):
+        p = bytearray(rng.randbytes(lay.len2))
+        frames.put(p, lay, "name", b"v%d" % i)
+        v.feed(frames.encode(250, p, 255, 190, i, 2, table=frames.layouts("seed2012")))
+        v.poll(1, 1)
+    values = v.ep.services["debug"].values
+    assert len(values) == sim_seed.DEBUG_NAMES and "v299" in values

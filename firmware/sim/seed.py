@@ -16,6 +16,7 @@ _FAILED = 4
 _IN_PROGRESS = 5
 _INFO = 6
 _WARNING = 4
+DEBUG_NAMES = 32  # debug values kept by name: a new name past these takes one's place
 SENSORS = ("gyro", "magnetometer", "ground pressure", "radio", "accelerometer",
            "compass/motor", "airspeed")
 OFFSET_SENSORS = 7
@@ -177,6 +178,9 @@ def compose(ep, sim=None):
         def on_debug(link, msgid, p):
             text = _debug_text(msgid, p)
             if text:
+                if text[0] not in values and len(values) >= DEBUG_NAMES:
+                    # Names are whatever arrives: kept without a bound they took the heap.
+                    del values[next(iter(values))]
                 values[text[0]] = text[1]
                 ep.statustext(_INFO, "Debug %s=%s" % text)
         debug.handler = on_debug
