@@ -111,3 +111,23 @@ def test_debug_values_keep_a_bounded_number_of_names(tmp_path):
         v.poll(1, 1)
     values = v.ep.services["debug"].values
     assert len(values) == sim_seed.DEBUG_NAMES and "v299" in values
+
+
+def test_targets_at_infinity_are_outside_the_allowed_area(tmp_path):
+    # Found by the fuzzer (the MicroPython engine): NAV_LAND, NAV_LOITER_UNLIM and
+    # DO_REPOSITION with an infinite param5 or param6 (NaN means "here"; infinity is no
+    # place) raised OverflowError in the allowed-area check (int of an infinity).
+    inf = float("inf")
+    v = FuzzVehicle(tmp_path / "st", whole=True)
+    geo = v.ep.services["geography"]
+    v.send("safety_set_allowed_area", 1, 1, 6, 47.0, 8.0, -100.0, 48.0, 9.0, 3000.0)  # global, relative alt
+    v.poll(3)
+    assert geo.area_set and not geo.area_local
+    assert geo.allows_degrees(47.5, 8.5, 10.0)
+    for lat, lon, alt in ((inf, 8.5, None), (47.5, -inf, None), (47.5, 8.5, inf), (1e30, 8.5, None),
+                          (47.5, 8.5, 1e30), (float("nan"), 8.5, None)):
+        assert not geo.allows_degrees(lat, lon, alt), (lat, lon, alt)
+    v.send("safety_set_allowed_area", 1, 1, 1, -50.0, -50.0, -100.0, 50.0, 50.0, 10.0)  # local NED
+    v.poll(3)
+    assert geo.area_local and geo.allows_local(1.0, 2.0, -3.0)
+    assert not geo.allows_local(inf, 2.0) and not geo.allows_local(1.0, 2.0, -inf) and not geo.allows_local(1e30, 0.0)

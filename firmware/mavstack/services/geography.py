@@ -39,6 +39,7 @@ _HAS_AREA = const(2)
 _XMIN = const(0)
 _YMIN = const(8)
 _ZMIN = const(16)
+_FAR_M = 200000.0  # farther (m, an altitude too) than any area's int32 bound: outside it
 
 
 class Geography:
@@ -103,6 +104,8 @@ class Geography:
         for o, v in ((_XMIN, x_m), (_YMIN, y_m), (_ZMIN, z_m)):
             if v is None:
                 continue
+            if not -_FAR_M < v < _FAR_M:  # (infinities too: no int for them)
+                return False
             v = int(v * 10000)
             if not _between(self._bounds, o, v >> 16, v & 0xFFFF):
                 return False
@@ -119,6 +122,8 @@ class Geography:
         """allows() for degrees and metres (floats: for the simulator, not a hot path)."""
         if not self.area_set or self.area_local:
             return True
+        if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0 and _near(alt_m)):
+            return False  # (NaN and infinities too)
         return self.allows(int(round(lat * 1e7)), int(round(lon * 1e7)),
                            None if alt_m is None else int(round(alt_m * 1000)))
 
@@ -135,7 +140,7 @@ class Geography:
             ok = self.allows_local(cmd.float(5), cmd.float(6), z)
         elif cmd.is_int:
             x, y = cmd.int(5), cmd.int(6)
-            ok = (x == 0 and y == 0) or x == 0x7FFFFFFF or self.allows(x, y, None if z is None else int(z * 1000))
+            ok = not (x or y) or x == 0x7FFFFFFF or (_near(z) and self.allows(x, y, None if z is None else int(z * 1000)))
         else:
             ok = self.allows_degrees(cmd.float(5), cmd.float(6), z)
         if not ok:
@@ -187,12 +192,8 @@ class Geography:
     def local_offset(self, x, y, z, roll, pitch, yaw):
         """LOCAL_POSITION_NED_SYSTEM_GLOBAL_OFFSET: m, rad."""
         # Staged, then packed by a function of few locals (see _pack_offset).
-        self._v1 = x
-        self._v2 = y
-        self._v3 = z
-        self._v4 = roll
-        self._v5 = pitch
-        self._v6 = yaw
+        self._v1, self._v2, self._v3 = x, y, z  # (three at a time: no tuple is made)
+        self._v4, self._v5, self._v6 = roll, pitch, yaw
         self._pack_offset()
 
     def _pack_offset(self):
@@ -321,6 +322,10 @@ class Geography:
 
 
 # Helpers of few locals (docs/design.md).
+def _near(m):
+    return m is None or -_FAR_M < m < _FAR_M
+
+
 def _between(b, o, hi, lo):
     """bounds b[o] (min) <= hi:lo <= b[o + 4] (max)."""
     return i32_cmp(b, o, hi, lo) <= 0 and i32_cmp(b, o + 4, hi, lo) >= 0
