@@ -4,10 +4,11 @@ one vehicle.
 
 Every frame a link sends is paid from one token bucket filled at link.bytes_per_s, at a
 rank (RANK_VITAL ... RANK_OTHER) that may spend it down to the rank's own floor; each of
-the last few senders answered has an allowance of its own, so a flood is answered last.
+the last few senders answered has an allowance of its own, so a flood is answered last,
+and ground stations heard before it (GCS HEARTBEATs, operator control) keep theirs.
 Reference (the ranks, send, can_send, the senders' shares): docs/core.md.
 """
-from .compat import const, ticks_diff
+from .compat import const, ticks_diff, ticks_add
 from .parser import Parser
 from .encoder import Encoder
 
@@ -22,18 +23,25 @@ RANK_REPLY = const(1)
 RANK_BULK = const(2)
 RANK_FILL = const(3)
 RANK_OTHER = const(4)
+_RANK_NEW = const(5)  # (by _auto only) answers to a sender not kept, within its share
 # Each rank's floor, in thousandths of a byte: a send may take the credit down to it.
 # The gaps between the floors are what each rank keeps for the ones above it: 256 bytes
-# for answers (a flood's share and another station's answers at once), and a due
-# stream frame (up to 64 bytes) goes at once while a list keeps the credit at its floor.
-_FLOOR = (-128000, 0, 256000, 320000, 384000)
+# for answers (a flood's share and another station's answers at once), the lower half of
+# it for the stations kept, and a due stream frame (up to 64 bytes) goes at once while a
+# list keeps the credit at its floor.
+_FLOOR = (-128000, 0, 256000, 320000, 384000, 128000)
 _BURST_MS = const(200)  # the bucket holds 200 ms of the link ...
 _MIN_CAP = const(700000)  # ... or RANK_OTHER's floor and a full MAVLink 2 frame
 _UNPACED = const(5000000)  # B/s: above this a link is not budgeted (and bps * ms stays small)
 _SENDERS = const(8)
 _SHARE_RATE_DIV = const(16)  # a sender's allowance fills at bytes_per_s / 16 ...
 _SHARE_CAP_DIV = const(8)  # ... up to bytes_per_s / 8
-_SHARE_START_DIV = const(16)  # a newcomer starts with a second's worth
+_SHARE_START_DIV = const(16)  # a slot starts with a second's worth
+_KEEP_MS = const(5000)  # a sender's slot is kept this long after its last GCS HEARTBEAT
+_UNKNOWN = const(-1)  # _slot: the sender not looked up yet
+_NO_SLOT = const(-2)  # _slot: every slot kept by others
+_MSG_HEARTBEAT = const(0)
+_MAV_TYPE_GCS = const(6)
 
 
 class Link:
@@ -62,10 +70,15 @@ class Link:
         self.credit = _cap(self.bytes_per_s) if self.bytes_per_s <= _UNPACED else 0  # full
         self._last = endpoint.now
         self._in_frame = False  # a received frame is being handled
-        self._slot = -1  # its sender's place in _who, -1: not looked up yet
+        self._slot = _UNKNOWN  # its sender's place in _who
         self._rank_now = RANK_REPLY
         self._who = [0] * _SENDERS  # (sysid << 8 | compid) + 1, 0: free
-        self._allow = [0] * _SENDERS  # what each may still be answered at RANK_REPLY (1/1000 B)
+        # What each may still be answered at RANK_REPLY (1/1000 B), and when it last sent
+        # a GCS HEARTBEAT (its slot kept _KEEP_MS from then).
+        bps = self.bytes_per_s
+        start = bps // _SHARE_START_DIV * 1000 if bps <= _UNPACED else 0  # (below 2^30)
+        self._allow = [start] * _SENDERS
+        self._beat = [ticks_add(self._last, -_KEEP_MS)] * _SENDERS
 
     def poll(self):
         """Read and parse whatever the transport has, without waiting."""
@@ -82,10 +95,12 @@ class Link:
         if self._heard is not None:
             self._heard(self.endpoint.now)
         self._in_frame = True
-        self._slot = -1
+        self._slot = _UNKNOWN
+        if msgid == _MSG_HEARTBEAT and payload[4] == _MAV_TYPE_GCS:
+            self._keep()
         self.endpoint.dispatch(self, msgid, payload)
         self._in_frame = False
-        self._slot = -1
+        self._slot = _UNKNOWN
 
     @property
     def version(self):
@@ -155,7 +170,7 @@ class Link:
         bps = self.bytes_per_s
         if bps > 0 and bps <= _UNPACED:
             self.credit -= n * 1000
-        if self._rank_now >= RANK_FILL:
+        if self._rank_now == RANK_FILL or self._rank_now == RANK_OTHER:
             self.tx_low = (self.tx_low + n) & TX_WRAP
         if self._slot >= 0:
             allow = self._allow[self._slot] - n * 1000
@@ -178,36 +193,56 @@ class Link:
 
     def _auto(self, n):
         """The rank of a send of n bytes that did not say: by the sender of the frame
-        being handled."""
+        being handled (docs/core.md, a sender's share)."""
         if not self._in_frame:
             return RANK_REPLY
         op = self.endpoint.operator
-        if op is not None and not op.allows(self):
-            return RANK_OTHER
-        if op is not None:
-            return RANK_REPLY  # the ground station in control
-        if self._slot < 0:
+        if op is not None and op.sysid != 0:  # a ground station in control: it alone
+            return RANK_REPLY if op.allows(self) else RANK_OTHER
+        if self._slot == _UNKNOWN:
             self._slot = self._sender()
-        if self._allow[self._slot] < n * 1000:
+        if self._slot < 0 or self._allow[self._slot] < n * 1000:
             return RANK_OTHER
-        return RANK_REPLY
+        return RANK_REPLY if self._kept(self._slot) else _RANK_NEW
+
+    def sender_kept(self):
+        """Is the frame being handled from a sender whose share is kept (the ground
+        station in control, or one heard sending GCS HEARTBEATs lately)? Outside a
+        frame (timers): True."""
+        return self._auto(0) == RANK_REPLY
+
+    def _kept(self, i):
+        d = ticks_diff(self.endpoint.now, self._beat[i])
+        return 0 <= d < _KEEP_MS
+
+    def _keep(self):
+        """A GCS HEARTBEAT: its sender's slot is kept from now (a newcomer takes one)."""
+        self._slot = self._sender()
+        if self._slot >= 0:
+            self._beat[self._slot] = self.endpoint.now
 
     def _sender(self):
-        """The slot of the current sender's allowance (a newcomer takes over the one
-        with the most left, the quietest sender's, and starts with a second's worth)."""
+        """The slot of the current sender's allowance -> its index, or _NO_SLOT. A
+        newcomer takes over a free slot, else of those not kept the one with the most
+        allowance left (the quietest sender's), with what allowance it has left."""
         key = (self.rx.sysid << 8 | self.rx.compid) + 1
-        allow = self._allow
         i = 0
-        most = 0
         while i < _SENDERS:
             if self._who[i] == key:
                 return i
-            if self._who[most] and (self._who[i] == 0 or allow[i] > allow[most]):
-                most = i
             i += 1
-        self._who[most] = key
-        allow[most] = self.bytes_per_s // _SHARE_START_DIV * 1000  # (below 2^30 up to _UNPACED)
-        return most
+        allow = self._allow
+        best = _NO_SLOT
+        i = 0
+        while i < _SENDERS and self._who[i] != 0:
+            if (best < 0 or allow[i] > allow[best]) and not self._kept(i):
+                best = i
+            i += 1
+        if i < _SENDERS:
+            best = i  # a free one
+        if best >= 0:
+            self._who[best] = key
+        return best
 
 
 def _cap(bps):
