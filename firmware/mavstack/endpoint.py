@@ -39,7 +39,7 @@ class Endpoint:
         # Shared between services, filled as they attach:
         self.capabilities = 0  # MAV_PROTOCOL_CAPABILITY bits for AUTOPILOT_VERSION
         self.producers = {}  # msgid -> send(link): one message now (REQUEST_MESSAGE, streams)
-        self.commands = {}  # MAV_CMD id -> handler(cmd) -> MAV_RESULT (services/commands.py)
+        self.commands = {}  # MAV_CMD id -> handler(cmd) -> MAV_RESULT (services/commands/)
         self.operator = None  # gate with allows(link), set by operator control
 
     def add_link(self, transport, version=0):

@@ -3,7 +3,7 @@
 Calibrating sensors and setting their offsets is the board's business, so both
 commands go to the application's handler:
     ep.services["calibration"].handler = handler(cmd) -> MAV_RESULT
-(cmd as services/commands.py hands it; cmd.defer() for a calibration that takes time).
+(cmd as services/commands/ hands it; cmd.defer() for a calibration that takes time).
 Built in, before the handler: the sender must be in control and the vehicle disarmed
 (a calibration moves the estimates the vehicle flies by): otherwise DENIED, with a
 STATUSTEXT. Without a handler: UNSUPPORTED with a STATUSTEXT (nothing to calibrate).
