@@ -34,7 +34,9 @@ import wire_streams  # noqa: E402
 C_SOURCE = os.path.join(BENCH, "c_ingest_m3.c")
 C_LDSCRIPT = os.path.join(BENCH, "c_ingest_m3.ld")
 BOARD_SCRIPT = os.path.join(BENCH, "mpy_ingest_m3.py")
-STREAM = 0x00200000  # where QEMU's loader puts the stream
+# Where QEMU's loader puts the stream: on the firmware, its storage and filesystem
+# regions (boards/qemu_m3.py), which nothing uses while no vehicle runs.
+STREAM = 0x00200000
 LENGTH_WORD = 0x001FFFF0  # and its length, for the C program (c_ingest_m3.c)
 STACK_ROOM = 16 * 1024  # below a firmware's _estack, kept clear of the stream
 ICOUNT = ["-icount", "shift=0"]  # one guest instruction, one virtual ns
