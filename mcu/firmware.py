@@ -160,10 +160,15 @@ def _build(board, heap_kb, frozen, manifest, quiet, filesystem=False):
         _sh(["make", "-C", os.path.join(src, "mpy-cross"), "-j%d" % (os.cpu_count() or 2)],
             capture_output=quiet)
     env = dict(os.environ, MAVSTACK_BOARD=board, MAVSTACK_NATIVE="1" if native else "0")
+    # Room for a traceback when the heap is locked: a MemoryError then says where.
+    cflags = "-DMICROPY_EMERGENCY_EXCEPTION_BUF_SIZE=256"
+    if filesystem:
+        cflags += " -DMAVSTACK_BOOT=1"
+    elif frozen and _restart_word(board):
+        cflags += " -DMAVSTACK_RESTART_WORD=%#x" % _restart_word(board)
     cmd = ["make", "-C", os.path.join(src, "ports", "qemu"), "-j%d" % (os.cpu_count() or 2),
            "BOARD=" + port_board, "BUILD=" + bdir, "MICROPY_HEAP_SIZE=%d" % (heap_kb * 1024),
-           # Room for a traceback when the heap is locked: a MemoryError then says where.
-           "CFLAGS_EXTRA=-DMICROPY_EMERGENCY_EXCEPTION_BUF_SIZE=256" + (" -DMAVSTACK_BOOT=1" if filesystem else "")]
+           "CFLAGS_EXTRA=" + cflags]
     if filesystem:
         cmd += ["MICROPY_VFS_LFS2=1", "LDSCRIPT=" + _linker_script(src, port_board, os.path.dirname(manifest))]
     if frozen:
@@ -186,6 +191,13 @@ def _region(board, name):
     if m is None:
         raise RuntimeError("mcu: boards/%s.py has no %s" % (board, name))
     return int(m.group(1), 16), int(m.group(2), 16)
+
+
+def _restart_word(board):
+    """The profile's RESTART_WORD (mavstack/qemu.py's watchdog), or None."""
+    with open(os.path.join(ROOT, "boards", board + ".py")) as f:
+        m = re.search(r"^RESTART_WORD = (0x[0-9A-Fa-f]+)", f.read(), re.M)
+    return int(m.group(1), 16) if m else None
 
 
 def _check_storage_region(board, elf, filesystem=False):
@@ -218,6 +230,16 @@ _BOOT_C = _BOOT_MARK + """
         }
         #endif
 """
+# Run at every reset of the frozen firmware of a profile with a RESTART_WORD: main.py
+# again when the word says a watchdog ran when the board reset (mavstack/qemu.py).
+_RESTART_MARK = "/* mavstack: start main.py again after a watchdog's reset */"
+_RESTART_C = _RESTART_MARK + """
+        #ifdef MAVSTACK_RESTART_WORD
+        if (*(volatile uint32_t *)MAVSTACK_RESTART_WORD) {
+            pyexec_file_if_exists("main.py");
+        }
+        #endif
+"""
 _TIME_C = _BOOT_MARK + """
 #ifdef MAVSTACK_BOOT
 // littlefs stamps files with the time; the port has no clock (no time module).
@@ -229,18 +251,20 @@ uint64_t mp_hal_time_ns(void) {
 
 
 def _patch_boot(src):
-    """Give the qemu port's main.c the boot sequence above (once; inert without
-    -DMAVSTACK_BOOT, so the other builds are unchanged)."""
+    """Give the qemu port's main.c the boot sequences above (once; inert without
+    -DMAVSTACK_BOOT or -DMAVSTACK_RESTART_WORD, so the other builds are unchanged)."""
     path = os.path.join(src, "ports", "qemu", "main.c")
     with open(path) as f:
         text = f.read()
-    if _BOOT_MARK in text:
+    if _RESTART_MARK in text:
         return
     anchor = "        mp_init();\n"
     if anchor not in text or "void gc_collect(void) {" not in text:
         raise RuntimeError("mcu: %s is not the main.c the boot patch expects" % path)
-    text = text.replace(anchor, anchor + _BOOT_C, 1)
-    text = text.replace("void gc_collect(void) {", _TIME_C + "\nvoid gc_collect(void) {", 1)
+    if _BOOT_MARK not in text:
+        text = text.replace(anchor, anchor + _BOOT_C, 1)
+        text = text.replace("void gc_collect(void) {", _TIME_C + "\nvoid gc_collect(void) {", 1)
+    text = text.replace(anchor, anchor + _RESTART_C, 1)
     with open(path, "w") as f:
         f.write(text)
 

@@ -4,13 +4,15 @@ machine.UART, so the clock and the MAVLink UART (a transport) are here: one modu
 as sleep_ms drains the UART, and the boards that run on them load nothing else.
 
   MPS2-AN385 (Cortex-M3)  clock: CMSDK APB timer 0 at 25 MHz; MAVLink: CMSDK UART 1
-                          (QEMU's second -serial; the REPL keeps UART 0)
+                          (QEMU's second -serial; the REPL keeps UART 0); watchdog:
+                          the CMSDK APB watchdog
   micro:bit (Cortex-M0)   clock: nRF51 TIMER0 at 31.25 kHz; MAVLink: the one UART,
-                          taken over from the REPL when the vehicle starts
+                          taken over from the REPL when the vehicle starts; no watchdog
 
-Every register value read here is below 2^30, a small int (docs/design.md). Waiting
-(sleep_ms) drains the UARTs' small receive FIFOs into their rings, as a receive
-interrupt would. Reference: docs/core.md.
+Every register value read while the vehicle runs is below 2^30, a small int
+(docs/design.md). Waiting (sleep_ms) drains the UARTs' small receive FIFOs into their
+rings, as a receive interrupt would. Reference: docs/core.md; the watchdog:
+docs/reliability.md.
 """
 import machine
 
@@ -224,3 +226,44 @@ class UartTransport:
         # A vehicle restarted in place opens the UART again: this one stops draining it.
         if self in UARTS:
             UARTS.remove(self)
+
+
+# --- the watchdog (MPS2-AN385 only) ----------------------------------------------
+if MODEL == "m3":
+    # CMSDK APB watchdog at 0x40008000 (LOAD, VALUE +4, CONTROL +8, INTCLR +0xC, RIS
+    # +0x10), counting down at 25 MHz. Its counter always runs: at zero it sets RIS and
+    # starts again from LOAD; at zero again with RIS still set it latches its reset, which
+    # RESEN passes on (QEMU 7.2 resets the machine). Writing INTCLR clears RIS and starts
+    # again from LOAD: the feed. Addresses are written out where used: each is an int
+    # past 2^30, a constant there, a heap object as a global (docs/design.md).
+    _COUNTS_HALF_MS = const(12500)  # LOAD a ms of the timeout: the counter runs out twice
+    _RESEN = const(2)  # CONTROL: reset enabled (not INTEN: the port has no handler for it)
+
+    class Watchdog:
+        """The board reset when feed() is not called for `ms`. `restart` is a RAM word
+        kept through a reset: non-zero while the watchdog runs, so that the firmware
+        starts the vehicle again after the reset (mcu/firmware.py)."""
+
+        def __init__(self, ms, restart):
+            self.restart = restart
+            _mem32[0x40008000] = ms * _COUNTS_HALF_MS  # LOAD
+            _mem32[0x4000800C] = 1  # INTCLR
+            _mem32[0x40008008] = _RESEN  # CONTROL
+            _mem32[restart] = 1
+
+        def feed(self):
+            _mem32[0x4000800C] = 1  # INTCLR
+
+        def stop(self):
+            """Back to the REPL: no reset, no restart. The counter runs on (it cannot be
+            stopped) from the longest LOAD, 172 s a turn."""
+            _mem32[0x40008008] = 0
+            _mem32[0x40008000] = -1
+            _mem32[0x4000800C] = 1
+            _mem32[self.restart] = 0
+
+    def latched():
+        """The watchdog ran out twice since the board's reset (343 s at an idle REPL from
+        power-on or from stop()): its reset is latched, and enabling it would reset the
+        board at once; only a reset clears it. Its counter stands still then (RIS set)."""
+        return _mem32[0x40008010] and _mem32[0x40008004] == _mem32[0x40008004]
