@@ -16,6 +16,7 @@ FENCE_CAPACITY = 50
 RALLY_CAPACITY = 10
 OPERATOR_PASSKEY = None
 GCS_TIMEOUT_MS = 5000
+WATCHDOG_MS = 2000  # machine.WDT resets the board when the loop stops this long
 RAM_BUDGET = 128 * 1024  # an ESP32 with PSRAM (WROVER); a plain WROOM leaves ~110 KB of heap
 
 
@@ -31,6 +32,16 @@ def reset():
     import machine
 
     machine.reset()
+
+
+def watchdog(ms):
+    """machine.WDT, fed by the poll loop; once started it cannot be stopped. None on a
+    port without it (the unix port, where tests/test_boards.py tries every profile)."""
+    try:
+        from machine import WDT
+    except ImportError:
+        return None
+    return WDT(timeout=ms)
 
 
 # parameters and default streams for a 57600 baud radio
