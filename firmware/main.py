@@ -1,10 +1,12 @@
-"""The program a board runs: build the endpoint its profile describes, then poll forever.
+"""The program a board runs: start its watchdog, build the endpoint its profile
+describes, then poll forever, feeding the watchdog.
 
     micropython firmware/main.py --board unix --link udpout:127.0.0.1:14550 --storage DIR
 Options: --board NAME, --link SPEC (repeatable: udpout:HOST:PORT, udpin:ADDR:PORT,
 serial:DEVICE:BAUD), --storage DIR, --sysid N, --set NAME=VALUE (board option,
 repeatable). On a board, with no arguments, the profile flashed as board.py is used.
-Reference: docs/core.md; the board settings: docs/boards.md.
+Reference: docs/core.md; the board settings: docs/boards.md; the watchdog and safe
+mode: docs/reliability.md.
 """
 import gc
 import sys
@@ -52,8 +54,16 @@ def load_board(name):
     return __import__(name)
 
 
-def build(board, opts):
-    """Endpoint, links, storage and services as the board profile composes them."""
+def watchdog(board, opts):
+    """The board's watchdog started (WATCHDOG_MS, --set watchdog_ms=N; 0: none) -> an
+    object with feed(), and stop() where it can be stopped; None when there is none."""
+    ms = int(opts["options"].get("watchdog_ms", getattr(board, "WATCHDOG_MS", 2000)))
+    return board.watchdog(ms) if ms and hasattr(board, "watchdog") else None
+
+
+def build(board, opts, dog=None):
+    """Endpoint, links, storage and services as the board profile composes them; with
+    a watchdog (dog, fed meanwhile), the crash-loop guard first (mavstack/watchdog.py)."""
     # --set dialect=seed2012 runs the board with the seed's message set instead of its own.
     name = opts.get("options", {}).get("dialect") or board.DIALECT
     dialect = __import__("mavstack.dialects." + name, None, None, ("CRC_LEN",))
@@ -70,6 +80,15 @@ def build(board, opts):
         ep.storage = Storage(opts.get("storage") or board.STORAGE)
     else:
         ep.storage = board.storage()  # a board without a filesystem (storage_ram.py)
+    services = board.SERVICES
+    safe = False
+    if dog is not None:
+        # A board its watchdog restarts counts its starts, and may start in safe mode.
+        from mavstack.watchdog import Guard  # only then (RAM)
+
+        guard = ep.add(Guard(services))
+        services = guard.services
+        safe = guard.safe
     specs = opts.get("links") or []
     # --set udp_bytes_per_s=5760 makes UDP links pace themselves like a 57600 baud radio.
     udp_rate = ep.setting("UDP_BYTES_PER_S", 200000)
@@ -79,13 +98,19 @@ def build(board, opts):
     else:
         for transport in board.transports():
             ep.add_link(transport)
-    why = compose(ep, board.SERVICES)  # each after the services it needs
+    if dog is not None:
+        dog.feed()
+    why = compose(ep, services)  # each after the services it needs
     if why:  # the profile's SERVICES are wrong: say so in one line, and stop
         print("mavstack: board %s: %s" % (board.NAME, why))
         sys.exit(1)
+    if dog is not None:
+        dog.feed()
     # --set application=0: the stack alone (the unix simulator allocates, so a soak under
-    # heap_lock runs without it).
-    app = board.application(ep) if hasattr(board, "application") and ep.setting("APPLICATION", True) else None
+    # heap_lock runs without it). None in safe mode.
+    app = None
+    if hasattr(board, "application") and ep.setting("APPLICATION", True) and not safe:
+        app = board.application(ep)
     _check_ram(ep, board)
     return ep, app
 
@@ -102,7 +127,7 @@ def _check_ram(ep, board):
         ep.statustext(4, "RAM: %d KB in use, budget %d KB" % (used >> 10, budget >> 10))
 
 
-def run(ep, app=None, period_ms=1):
+def run(ep, app=None, period_ms=1, dog=None):
     # Sleeping through status.idle lets it measure the loop's load for SYS_STATUS.
     status = ep.services.get("status")
     idle = status.idle if status is not None else sleep_ms
@@ -124,6 +149,8 @@ def run(ep, app=None, period_ms=1):
         micropython.heap_lock()
     try:
         while True:
+            if dog is not None:
+                dog.feed()
             now = ticks_ms()
             ep.poll(now)
             if app is not None:
@@ -164,14 +191,15 @@ def _heap_report(lock):
 def main(argv):
     opts = parse_args(argv)
     board = load_board(opts["board"])
+    dog = watchdog(board, opts)  # first: whatever follows may hang
     while True:
-        ep, app = build(board, opts)
+        ep, app = build(board, opts, dog)
         try:
-            run(ep, app)
+            run(ep, app, 1, dog)
         except Reboot:
             # A board resets in board.reset(); the unix vehicle (and a board without
             # reset()) restarts in place, after letting the old vehicle go: a small heap
-            # holds one vehicle, not two.
+            # holds one vehicle, not two. The watchdog runs on.
             stop(ep)
             ep.close()
             if hasattr(board, "reset"):
@@ -183,12 +211,17 @@ def main(argv):
             pass
         stop(ep)
         ep.close()
+        if dog is not None and hasattr(dog, "stop"):  # back to the REPL, or out
+            dog.stop()
+        elif dog is not None:
+            print("mavstack: the watchdog cannot be stopped: the board resets when it runs out")
         return
 
 
 def stop(ep):
     """Before a reboot or shutdown: services that keep something across it store it now
-    (signing: its timestamp, so that frames from before cannot be replayed after)."""
+    (signing: its timestamp, so that frames from before cannot be replayed after; the
+    crash-loop guard: that this start ended cleanly)."""
     for svc in ep.services.values():
         if hasattr(svc, "stop"):
             svc.stop()
