@@ -41,12 +41,26 @@ MODE_NUMBERING = "auto"  # per link, as its ground station reads modes (modes.py
 INPUT_TIMEOUT_MS = 1000  # an input that stops this long is lost: on_input_lost (the simulator's failsafe)
 RC_OVERRIDE_TIMEOUT_MS = 3000  # an RC override channel not set again this long goes back to the radio
 RAM_BUDGET = 416 * 1024  # heap the vehicle may hold after start-up (main.py reports it): every service and the simulator (its flight modes, commands and failsafes ~40 KB), 64-bit pointers
+WATCHDOG_MS = 2000  # under host_tools/watchdog.py: it restarts the vehicle when the loop stops this long
 
 
 def transports():
     from mavstack.transport import open_transport
 
     return [open_transport(spec, UDP_BYTES_PER_S) for spec in LINKS]
+
+
+def watchdog(ms):
+    """The unix port's watchdog is a process, host_tools/watchdog.py, which runs this
+    vehicle and starts it again when it stops feeding; None without it (`make run`)."""
+    from mavstack.compat import getenv
+
+    port = getenv("MAVSTACK_WATCHDOG_PORT")
+    if not port:
+        return None
+    from unix_watchdog import ProcessWatchdog  # only then (RAM)
+
+    return ProcessWatchdog(int(port), ms)
 
 
 def application(endpoint):
