@@ -1,0 +1,9 @@
+# The firmware of tests/test_mcu_watchdog.py: the emulated M3's (firmware/manifest.py,
+# which it follows), with tests/watchdog/board.py as the profile frozen as `board` and
+# faults.py beside it.
+package("mavstack", base_path="../../firmware")
+module("main.py", base_path="../../firmware")
+for _name in ("qemu_m3.py", "qemu.py", "unix_params.py"):
+    module(_name, base_path="../../boards")
+module("board.py")
+module("faults.py")
