@@ -94,6 +94,25 @@ def request(m, msgid, timeout=5.0):
     return (None if a is None else a.result), msg
 
 
+def ardupilot_station(m):
+    """The pymavlink station m does what MAVProxy and Mission Planner do on connecting:
+    REQUEST_DATA_STREAM, ArduPilot's way to ask for telemetry. From then on the vehicle
+    reads and reports modes by ArduPilot's numbers on its link, and its integers C-cast
+    (services/status/conventions.py)."""
+    m.mav.request_data_stream_send(m.target_system, m.target_component, 0, 4, 1)
+    return m
+
+
+def px4_station(m):
+    """The pymavlink station m does what MAVSDK does on connecting: REQUEST_MESSAGE
+    AUTOPILOT_VERSION with NaN in the parameters it does not use. From then on its link
+    reads and sets modes PX4's way (main and sub mode), its integers bytewise."""
+    nan = float("nan")
+    m.mav.command_long_send(m.target_system, m.target_component, 512, 0, 148, nan, nan, nan, nan, nan, nan)
+    ack(m, 512)
+    return m
+
+
 def statustext(m, contains, timeout=5.0):
     return listen(m, "STATUSTEXT", timeout, lambda s: contains in s.text)
 
@@ -148,11 +167,16 @@ class MavProxy:
 
 
 @contextlib.contextmanager
-def mavsdk_system(port):
-    """MAVSDK as a ground station sending to the vehicle's udpin port: yields its System."""
+def mavsdk_system(port, identity=None):
+    """MAVSDK as a ground station sending to the vehicle's udpin port: yields its System.
+    identity (sysid, compid) replaces its own 245/190, as `mavsdk_server --sysid 255
+    --compid 1` does (a ground station still: its heartbeats say MAV_TYPE_GCS)."""
     import mavsdk
 
-    sdk = mavsdk.Mavsdk(mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION))
+    config = mavsdk.Configuration.create_with_component_type(mavsdk.ComponentType.GROUND_STATION)
+    if identity is not None:
+        config.system_id, config.component_id = identity
+    sdk = mavsdk.Mavsdk(config)
     try:
         sdk.add_any_connection("udpout://127.0.0.1:%d" % port)
         system = sdk.first_autopilot(20.0)

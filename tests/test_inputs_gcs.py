@@ -10,7 +10,8 @@ import math
 import threading
 import time
 
-from gcs_tools import MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MavProxy, listen, mavsdk_system, run, start, two_links
+from gcs_tools import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MavProxy, listen, mavsdk_system, px4_station, run, start,
+                       two_links)
 
 FAST = ("--set", "sim_speed=8", "--set", "sim_climb=4")
 # boards/unix.py FLIGHT_MODES numbers (ArduPilot's, as pymavlink reads them)
@@ -198,7 +199,7 @@ def _wait(cond, timeout):
 
 def test_pymavlink_offboard_refused_without_setpoints_then_loss_failsafe(vehicle):
     # PX4's rule: OFFBOARD only with setpoints streaming; when they stop, hold, then RTL.
-    m = start(vehicle, *FAST).gcs(source_system=245, source_component=190)  # PX4 numbering (MAVSDK's id)
+    m = px4_station(start(vehicle, *FAST).gcs())  # PX4's numbers: it shows PX4's convention (MAVSDK's way)
     assert run(m, 400, 1) == MAV_RESULT_ACCEPTED
     assert run(m, 176, 1, 6, 0) == MAV_RESULT_DENIED  # no setpoint yet
     stop = threading.Event()

@@ -1,17 +1,20 @@
 """The vehicle's flight modes as ground stations set and read them: the unix vehicle's
 table (boards/unix.py FLIGHT_MODES) over UDP, with pymavlink, MAVProxy and MAVSDK.
 
-ArduPilot's numbers for a ground station that assumes ArduPilot (pymavlink, MAVProxy),
-PX4's main/sub mode for MAVSDK (recognised by its system id, or by a PX4-encoded
-SET_MODE), standard modes for anyone. A mode the vehicle does not have is refused and
-leaves the mode as it was. These run without the simulator (`application=0`): what the
-vehicle does in each mode is tests/test_flight*.py's.
+ArduPilot's numbers for a ground station that shows ArduPilot's conventions (MAVProxy's
+REQUEST_DATA_STREAM), PX4's main/sub mode for one that shows PX4's (MAVSDK's NaN-filled
+commands, a sub mode, a PX4-encoded SET_MODE), whatever its system id; a DO_SET_MODE that
+could mean two modes from a station that has shown neither is refused. Standard modes for
+anyone. A mode the vehicle does not have is refused and leaves the mode as it was. These
+run without the simulator (`application=0`): what the vehicle does in each mode is
+tests/test_flight*.py's.
 """
 import time
 
 from conftest import recv
 from gcs_tools import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED, MavProxy, ack,
-                       mavsdk_system, run, start, statustext, two_links, vehicle_heartbeat)
+                       ardupilot_station, mavsdk_system, px4_station, run, start, statustext, two_links,
+                       vehicle_heartbeat)
 
 MODE_CUSTOM = 1
 MODE_HIL = 32
@@ -42,7 +45,7 @@ def _shows(m, custom, timeout=5.0):
 
 
 def test_boots_in_stabilize_and_every_numbered_mode_is_set_and_shown(vehicle):
-    m = start(vehicle, *NO_APP).gcs()
+    m = ardupilot_station(start(vehicle, *NO_APP).gcs())
     assert _mode(m) == (MODE_CUSTOM | 64 | MODE_STABILIZE, 0)
     for name in ("ALT_HOLD", "POSITION", "AUTO", "GUIDED", "LOITER", "RTL", "LAND", "STABILIZE"):
         number = TABLE[name][0]
@@ -54,7 +57,7 @@ def test_boots_in_stabilize_and_every_numbered_mode_is_set_and_shown(vehicle):
 
 
 def test_unknown_custom_mode_refused_and_nothing_changes(vehicle):
-    m = start(vehicle, *NO_APP).gcs()
+    m = ardupilot_station(start(vehicle, *NO_APP).gcs())
     assert run(m, 176, MODE_CUSTOM, 5) == MAV_RESULT_ACCEPTED
     before = _mode(m)
     assert run(m, 176, MODE_CUSTOM, 7) in (MAV_RESULT_DENIED, MAV_RESULT_UNSUPPORTED)  # ArduCopter's CIRCLE
@@ -83,7 +86,7 @@ def test_base_flags_alone_pick_the_mode_with_those_flags(vehicle):
 
 
 def test_hil_refused_where_the_board_does_not_allow_it(vehicle):
-    m = start(vehicle, *NO_APP).gcs()
+    m = ardupilot_station(start(vehicle, *NO_APP).gcs())
     before = _mode(m)
     assert run(m, 176, MODE_HIL | MODE_CUSTOM, 5) == MAV_RESULT_DENIED
     assert statustext(m, "HIL not supported") is not None
@@ -102,11 +105,15 @@ def test_standard_modes(vehicle):
     assert _mode(m)[1] == TABLE["TAKEOFF"][0]
 
 
-def test_px4_convention_for_mavsdk_and_for_a_px4_encoded_request(vehicle):
-    # A ground station with MAVSDK's system id reads PX4's encoding and sets modes PX4's
+def test_px4_convention_learned_from_what_a_station_does_not_its_system_id(vehicle):
+    # MAVSDK's own system id says nothing: its REQUEST_MESSAGE with NaN in the parameters
+    # it does not use does. A PX4-convention link reads PX4's encoding and sets modes PX4's
     # way (DO_SET_MODE param2 main mode, param3 sub mode); another link keeps ArduPilot's.
     v, port, ardu = two_links(vehicle, *NO_APP)
-    sdk = v.gcs(port=port, source_system=245)
+    ardupilot_station(ardu)
+    sdk = v.gcs(port=port, source_system=245, source_component=190)
+    assert _shows(sdk, 0) is not None  # not by its id: nothing shown yet, ArduPilot's numbers
+    px4_station(sdk)
     assert _shows(sdk, px4("STABILIZE")) is not None
     assert run(sdk, 176, MODE_CUSTOM, 4, 5) == MAV_RESULT_ACCEPTED  # AUTO.RTL
     assert _shows(sdk, px4("RTL")) is not None
@@ -117,9 +124,41 @@ def test_px4_convention_for_mavsdk_and_for_a_px4_encoded_request(vehicle):
     assert run(sdk, 176, MODE_CUSTOM, 1, 0) == MAV_RESULT_ACCEPTED  # PX4 MANUAL: stabilized here
     assert _shows(sdk, px4("STABILIZE")) is not None
     assert run(sdk, 176, MODE_CUSTOM, 4, 9) == MAV_RESULT_DENIED  # AUTO.PRECLAND: not ours
+    assert run(ardu, 176, MODE_CUSTOM, 6) == MAV_RESULT_ACCEPTED  # ArduPilot's RTL on the other
+    assert _shows(sdk, px4("RTL")) is not None
     # A SET_MODE with a PX4-encoded custom mode is understood on any link, and tells it.
     ardu.mav.set_mode_send(1, MODE_CUSTOM, px4("LAND"))
     assert _shows(ardu, px4("LAND")) is not None
+
+
+def test_a_number_that_could_mean_two_modes_is_refused_until_the_station_shows_its_convention(vehicle):
+    """DO_SET_MODE param2 6 with param3 0 is ArduCopter's RTL and PX4's OFFBOARD: from a
+    station that has shown neither convention it is refused with a STATUSTEXT saying so;
+    one that means the same mode either way (2: ALT_HOLD, PX4's Altitude) or that only
+    one convention has (9: LAND) is taken. A sub mode, NaN in the unused parameters (as
+    MAVSDK sends), a SET_MODE or REQUEST_DATA_STREAM settle it, whatever the system id."""
+    v, port, m = two_links(vehicle, *NO_APP)
+    for number, modes in ((6, "ArduPilot RTL or PX4 OFFBOARD"), (3, "ArduPilot AUTO or PX4 POSITION"),
+                          (5, "ArduPilot LOITER or PX4 (none)"), (7, "ArduPilot (none) or PX4 STABILIZE")):
+        assert run(m, 176, MODE_CUSTOM, number) == MAV_RESULT_DENIED, number
+        assert statustext(m, "Mode %d: %s? Refused" % (number, modes)) is not None
+    assert _mode(m)[1] == 0  # still STABILIZE, shown by ArduPilot's numbers
+    for name in ("ALT_HOLD", "LAND", "GUIDED", "POSITION"):
+        assert run(m, 176, MODE_CUSTOM, TABLE[name][0]) == MAV_RESULT_ACCEPTED, name
+        assert _shows(m, TABLE[name][0]) is not None, name
+    m.mav.set_mode_send(1, MODE_CUSTOM, 6)  # SET_MODE carries PX4's modes encoded: never two
+    assert _shows(m, TABLE["RTL"][0]) is not None
+    nan = float("nan")
+    m.mav.command_long_send(1, 1, 176, 0, MODE_CUSTOM, 4, 3, nan, nan, nan, nan)  # as MAVSDK's hold()
+    assert ack(m, 176).result == MAV_RESULT_ACCEPTED
+    assert _shows(m, px4("LOITER")) is not None  # ... and the link reads PX4's way from now on
+    # MAVSDK's system id on the other link says nothing: refused there until it shows.
+    fresh = v.gcs(port=port, source_system=245, source_component=190)
+    assert run(fresh, 176, MODE_CUSTOM, 6) == MAV_RESULT_DENIED
+    ardupilot_station(fresh)  # REQUEST_DATA_STREAM: ArduPilot's numbers
+    assert run(fresh, 176, MODE_CUSTOM, 6) == MAV_RESULT_ACCEPTED
+    assert _shows(fresh, TABLE["RTL"][0]) is not None
+    assert _shows(m, px4("RTL")) is not None
 
 
 def test_mavproxy_sets_modes_by_name(vehicle, tmp_path):
@@ -149,6 +188,7 @@ def test_mavsdk_reports_each_mode(vehicle):
         "OFFBOARD": FlightMode.OFFBOARD,
     }
     v, port, m = two_links(vehicle, *NO_APP)
+    ardupilot_station(m)
     with mavsdk_system(port) as system:
         tel = Telemetry(system)
         for name, mode in expected.items():

@@ -116,10 +116,7 @@ def test_refused_set_answers_value_in_force(vehicle, name, value, ptype, why, er
     assert err is not None and err.error == error and err.target_system == 255
     assert err.param_index == NAMES.index(name)
     msg = recv(m, "PARAM_VALUE", 3, lambda x: x.param_id == name)
-    if ptype == 9 and before.param_type != 9:  # a cast: the link is answered C-cast now
-        assert msg.param_value == struct.unpack("<i", raw_value(before))[0]
-    else:
-        assert raw_value(msg) == raw_value(before)
+    assert raw_value(msg) == raw_value(before)  # (a float for an integer changes no encoding)
     assert recv(m, "STATUSTEXT", 3, lambda t: name in t.text and why in t.text) is not None
 
 
@@ -136,19 +133,25 @@ def test_unknown_names_get_param_error(vehicle):
     assert err.param_index == N + 3 and err.error == 1
 
 
-def test_real32_typed_set_of_an_integer_is_a_cast_and_turns_the_link_c_cast(vehicle):
-    """A sender that declares a float for an integer parameter means the number; under
-    "auto" its link is answered C-cast from then on, the other links stay bytewise."""
+def test_real32_typed_set_of_an_integer_is_a_cast_and_keeps_the_links_encoding(vehicle):
+    """A sender that declares a float for an integer parameter means the number (as
+    ArduPilot and pymavlink have it); it changes no link's encoding: each link's integers
+    travel as its ground station's conventions say (services/status/conventions.py)."""
     p1, p2 = free_udp_port(), free_udp_port()
     v = vehicle(links=["udpin:127.0.0.1:%d" % p1, "udpin:127.0.0.1:%d" % p2])
     a = v.gcs(port=p1)
     b = v.gcs(port=p2, source_system=254)
     assert raw_value(read(a, b"BATT_CAPACITY")) == struct.pack("<i", 5000)
     msg = set_param(a, "BATT_CAPACITY", 6100.0, 9)
-    assert msg.param_type == 6 and msg.param_value == 6100.0
-    assert read(a, b"BATT_CAPACITY").param_value == 6100.0
+    assert msg.param_type == 6 and raw_value(msg) == struct.pack("<i", 6100)  # stored, told bytewise
+    assert raw_value(read(a, b"BATT_CAPACITY")) == struct.pack("<i", 6100)  # ... and still so
+    assert raw_value(read(a, b"MAV_SYS_ID")) == struct.pack("<B", 1) + bytes(3)
     msg = recv(b, "PARAM_VALUE", 3, lambda x: x.param_id == "BATT_CAPACITY")
     assert raw_value(msg) == struct.pack("<i", 6100)  # the other link: bytewise
+    a.mav.request_data_stream_send(1, 1, 0, 4, 1)  # ArduPilot's convention shown: C-cast
+    deadline = time.time() + 3
+    while time.time() < deadline and read(a, b"BATT_CAPACITY").param_value != 6100.0:
+        time.sleep(0.1)
     # Typed as the parameter on a C-cast link: the float holds the number.
     assert set_param(a, "BATT_CAPACITY", 4200.0, 6).param_value == 4200.0
     assert raw_value(read(b, b"BATT_CAPACITY")) == struct.pack("<i", 4200)
@@ -166,8 +169,18 @@ def test_auto_encoding_follows_what_the_ground_station_does(vehicle):
     while time.time() < deadline and read(m, b"BATT_CAPACITY").param_value != 5000.0:
         time.sleep(0.1)
     assert read(m, b"BATT_CAPACITY").param_value == 5000.0
-    caps = command(m, 512, 148)  # asks for AUTOPILOT_VERSION: told bytewise, answered so
-    assert caps is not None
+    assert command(m, 512, 148) is not None  # asks for AUTOPILOT_VERSION: ArduPilot's do too
+    assert read(m, b"BATT_CAPACITY").param_value == 5000.0
+    # NaN in the parameters a command does not use: MAVSDK's way, PX4's convention:
+    # bytewise, and a float for an integer refused as PX4 does (TYPE_MISMATCH, not stored).
+    nan = float("nan")
+    m.mav.command_long_send(1, 1, 512, 0, 148, nan, nan, nan, nan, nan, nan)
+    assert recv(m, "COMMAND_ACK", 3) is not None
+    assert raw_value(read(m, b"BATT_CAPACITY")) == struct.pack("<i", 5000)
+    m.mav.param_set_send(1, 1, b"BATT_CAPACITY", 4100.0, 9)
+    err = recv(m, "PARAM_ERROR", 3)
+    assert err.param_id == "BATT_CAPACITY" and err.error == 7  # TYPE_MISMATCH
+    assert recv(m, "STATUSTEXT", 3, lambda t: "BATT_CAPACITY not set: type 9, expected 6" in t.text)
     assert raw_value(read(m, b"BATT_CAPACITY")) == struct.pack("<i", 5000)
 
 

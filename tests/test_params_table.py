@@ -16,6 +16,7 @@ from mavstack.endpoint import Endpoint
 from mavstack.kernels import crc16
 from mavstack.services import commands as commands_service
 from mavstack.services import params as P
+from mavstack.services import status as status_service
 from mavstack.services.params import table as param_table
 from mavstack.storage import Storage
 
@@ -70,6 +71,7 @@ class Texts:
     """Stands where the status service would: collects STATUSTEXTs."""
 
     NAME = "status"
+    conventions = None  # no ground station's conventions known: "auto" is bytewise
 
     def __init__(self):
         self.texts = []
@@ -85,7 +87,7 @@ class Texts:
 class Rig:
     """An endpoint with the params and commands services, and pymavlink peers per link."""
 
-    def __init__(self, tmp_path, table=TABLE, links=1, version=2, rate=200000, **kw):
+    def __init__(self, tmp_path, table=TABLE, links=1, version=2, rate=200000, status=False, **kw):
         self.ep = Endpoint(common, 1, 1)
         self.ep.storage = Storage(str(tmp_path / "storage"))
         self.transports = []
@@ -95,6 +97,8 @@ class Rig:
             self.ep.add_link(t, version)
         self.texts = Texts()
         self.ep.add(self.texts)
+        if status:  # the conventions each link's ground station assumes ("auto")
+            status_service.create(self.ep)
         self.params = self.ep.add(P.Params(table, **kw))
         commands_service.create(self.ep)
         self.mav = [mav.MAVLink(None, 255, 190) for _ in range(links)]
@@ -451,18 +455,33 @@ def test_bytewise_encoding_takes_real32_typed_integers_as_casts(tmp_path):
 
 
 def test_auto_encoding_per_link(tmp_path):
-    b = Rig(tmp_path, table=MIXED, encoding="auto", links=2)
+    """"auto": C-cast on a link whose ground station shows ArduPilot's conventions (the
+    status service's conventions.py), bytewise elsewhere; a REAL32-typed set of an
+    integer is the number it holds and changes no link's encoding, but from a station in
+    PX4's convention it is refused (PX4's rule: TYPE_MISMATCH, nothing stored)."""
+    b = Rig(tmp_path, table=MIXED, encoding="auto", links=2, status=True)
     assert b.ep.capabilities & (1 << 4) and not b.ep.capabilities & (1 << 17)  # told: bytewise
-    got = b.set("I32", 6000.0, P.REAL32)  # link 0 declared a float for an integer: C-cast
-    assert got[0].param_value == 6000.0
-    b.poll(5)
-    other = [m for m in b.values(1) if m.param_id == "I32"]
-    assert other and other[-1].get_msgbuf()[10:14] == struct.pack("<i", 6000)
+
+    def value(msgs):
+        return [m for m in msgs if m.get_type() == "PARAM_VALUE"][-1]
+
+    got = b.set("I32", 6000.0, P.REAL32)  # nothing shown yet: the number, answered bytewise
+    assert value(got).get_msgbuf()[10:14] == struct.pack("<i", 6000)
     b.send(mav.MAVLink_request_data_stream_message(1, 1, 0, 4, 1), 1)  # ArduPilot's way: C-cast
-    assert b.ask(mav.MAVLink_param_request_read_message(1, 1, b"I32", -1), 1)[0].param_value == 6000.0
-    b.command(512, 148.0)  # asks for AUTOPILOT_VERSION on link 0: told bytewise
+    assert value(b.ask(mav.MAVLink_param_request_read_message(1, 1, b"I32", -1), 1)).param_value == 6000.0
+    b.command(512, 148.0)  # asks for AUTOPILOT_VERSION on link 0: PX4's, as nothing else was shown
     got = b.ask(mav.MAVLink_param_request_read_message(1, 1, b"I32", -1))
-    assert got[-1].get_msgbuf()[10:14] == struct.pack("<i", 6000)
+    assert value(got).get_msgbuf()[10:14] == struct.pack("<i", 6000)
+    got = b.set("I32", 7000.0, P.REAL32)  # a float for an integer from PX4's side: refused
+    assert [m.error for m in got if m.get_type() == "PARAM_ERROR"] == [7]  # TYPE_MISMATCH
+    assert b.params.get("I32") == 6000
+    assert value(b.set("I32", 7000.0, P.REAL32, link=1)).param_value == 7000.0  # ArduPilot's: taken
+    assert b.params.get("I32") == 7000
+    b.send(mav.MAVLink_request_data_stream_message(1, 1, 0, 4, 1), 0)  # shown later: C-cast
+    assert value(b.ask(mav.MAVLink_param_request_read_message(1, 1, b"I32", -1))).param_value == 7000.0
+    b.command(512, 148.0)  # decides only a link that has shown nothing
+    got = b.ask(mav.MAVLink_param_request_read_message(1, 1, b"I32", -1))
+    assert value(got).param_value == 7000.0
 
 
 def test_bytewise_capability(tmp_path):

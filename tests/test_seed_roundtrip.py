@@ -61,6 +61,7 @@ def test_parameters_mission_and_commands(seed_station):
     assert a is not None and a.result == 0
     hb = g.recv("HEARTBEAT", 5.0, lambda h: h.base_mode & 128)
     assert hb is not None
+    g.send(mod.MAVLink_request_data_stream_message(1, 1, 0, 4, 1))  # as its planners did: ArduPilot's numbers
     g.command(176, 1.0, 5.0)  # DO_SET_MODE: LOITER
     a = g.recv("COMMAND_ACK", 5.0, lambda a: a.command == 176)
     assert a is not None and a.result == 0

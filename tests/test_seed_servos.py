@@ -6,7 +6,8 @@ the table, a sender not in control, and no answer to a command for another syste
 import time
 
 from conftest import recv
-from gcs_tools import MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MavProxy, command, run, statustext, two_links
+from gcs_tools import (MAV_RESULT_ACCEPTED, MAV_RESULT_DENIED, MavProxy, ardupilot_station, command, run, statustext,
+                       two_links)
 
 PASSKEY = "sesame"
 
@@ -124,6 +125,6 @@ def test_mission_items_drive_the_table(vehicle):
             Item(3, 16, 0, 1, 0.0, 2.0, 0.0, 0.0, LAT0 + 500, LON0, 5.0)]
     assert MissionClient(m).upload(plan) == 0
     assert run(m, 400, 1) == MAV_RESULT_ACCEPTED
-    assert run(m, 176, 1 | 4 | 16, 3) == MAV_RESULT_ACCEPTED  # AUTO
+    assert run(ardupilot_station(m), 176, 1 | 4 | 16, 3) == MAV_RESULT_ACCEPTED  # AUTO (ArduPilot's 3)
     assert servo_outputs(m, 30, lambda s: s.servo8_raw == 1900) is not None
     assert relays(m) == 8

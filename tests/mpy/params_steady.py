@@ -371,17 +371,13 @@ class Own:
         self.f_seed = struct.pack("<f", float(SEED_KEPT))
         self.txbuf = bytearray(280)
         self.storage = FlatStorage(len(p.pack()))
-        # "auto": what the ground station does, as the handlers get it (payloads)
         self.link = s.b.ep.links[0]
-        self.heartbeat = struct.pack("<IBBBBB", 0, 6, 8, 0, 0, 3)  # MAV_TYPE_GCS
-        self.streams = struct.pack("<HBBBB", 4, 1, 1, 0, 1)  # REQUEST_DATA_STREAM
-        self.caps = struct.pack("<7fHBBB", 148.0, 0, 0, 0, 0, 0, 0, 512, 1, 1, 0)  # AUTOPILOT_VERSION?
 
 
 def own_paths(o):
     """The service's own work, no link, no storage of note: a save and a reload, 32-bit
-    values in their own encoding and cast from floats, a PARAM_VALUE's payload, and under
-    "auto" the handlers that watch what a ground station does."""
+    values in their own encoding and cast from floats, a PARAM_VALUE's payload in the
+    link's encoding (under "auto", as the status service's conventions say)."""
     p = o.p
     p.persist(1)
     p.accept(o.uid, o.u32, 0, False)
@@ -389,12 +385,7 @@ def own_paths(o):
     p.persist(0)
     p.accept(o.uid, o.f_uid, 0, True)
     p.accept(o.seed, o.f_seed, 0, True)
-    p._fill(o.txbuf, 0, o.uid, p.c_cast)
-    if p.auto:
-        # Each ground-station frame runs these: the link ends bytewise (told), as it began.
-        p._heard_heartbeat(o.link, o.heartbeat)
-        p._heard_streams(o.link, o.streams)
-        p._heard_command(o.link, o.caps)
+    p._fill(o.txbuf, 0, o.uid, p.cast_link(o.link))
 
 
 def measure(requests, fn, arg):

@@ -5,7 +5,8 @@ SERVICES is a comma list (status,commands[,params,...]). A ground station's hear
 every simulated second, and a burst of commands each 50 ms: arm/disarm, an unknown
 command, REQUEST_MESSAGE (SYS_STATUS, AUTOPILOT_VERSION), COMMAND_INT, SET_MODE, PING,
 a corrupted frame, a STATUSTEXT, the flight-mode requests (standard modes, PX4's
-encoding, a MAVSDK heartbeat turning the link to PX4's numbering). SYS_STATUS carries the pre-arm and geofence bits the
+encoding) and what tells the link's convention (REQUEST_DATA_STREAM: ArduPilot's numbers;
+PX4's sub mode: PX4's, turn about). SYS_STATUS carries the pre-arm and geofence bits the
 status service fills from the arming check (a hook here) and the fence. After a warm-up the rounds run twice: unlocked, counted
 with micropython.mem_total(), then under heap_lock() (any allocation raises MemoryError).
 Prints `OK rounds=N acks=N ... requested=0` (the figures of the locked run; requested:
@@ -39,16 +40,16 @@ def build(services, storage):
         g.command(31000),  # unknown
         g.command(512, 1.0),  # REQUEST_MESSAGE SYS_STATUS
         g.command(512, 148.0),  # REQUEST_MESSAGE AUTOPILOT_VERSION
-        g.command_int(176, 0, 1.0 + 16, 3.0),  # DO_SET_MODE as COMMAND_INT, custom mode 3
+        g.frame(66, 4, 1, 1, 0, 1),  # REQUEST_DATA_STREAM: the link reads ArduPilot's numbers
+        g.command_int(176, 0, 1.0 + 16, 3.0),  # DO_SET_MODE as COMMAND_INT, custom mode 3: AUTO
         g.frame(11, 99, 1, 1),  # SET_MODE to custom mode 99, which is refused (a STATUSTEXT)
         g.frame(4, 1234567, 9, 0, 0),  # PING request
         g.command(400, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1, 1, 1),  # arm, confirmation 1
         g.command(400, 0.0, 21196.0),  # forced disarm
         g.command(262, 5.0),  # DO_SET_STANDARD_MODE SAFE_RECOVERY: RTL
         g.command(262, 2.0),  # ... ORBIT, which it has not: UNSUPPORTED
-        g.frame(11, 4 << 16 | 4 << 24, 1, 1),  # SET_MODE PX4-encoded AUTO.MISSION
-        b.gcs(245, 190).heartbeat(),  # MAVSDK's: the link reads modes PX4's way from now on
-        g.command(176, 1.0, 4.0, 5.0),  # DO_SET_MODE, PX4's way: AUTO.RTL
+        g.frame(11, 4 << 16 | 4 << 24, 1, 1),  # SET_MODE PX4-encoded AUTO.MISSION: PX4's from now on
+        g.command(176, 1.0, 4.0, 5.0),  # DO_SET_MODE, PX4's way (a sub mode): AUTO.RTL
     )
     bad = bytearray(frames[3])
     bad[-1] ^= 0xFF  # CRC error

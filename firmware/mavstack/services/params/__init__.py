@@ -6,7 +6,8 @@ MAV_CMD_DO_SET_PARAMETER. A list goes out at what the link's budget leaves (link
 RANK_FILL) and continues when asked again; a read or a set is answered at once, or owed
 ahead of the list. A set is checked and always answered with the value in force; a
 refusal also gets PARAM_ERROR and a STATUSTEXT, a change goes out on every link. Each
-link's integers travel in the encoding its ground station reads (PARAM_ENCODING).
+link's integers travel in the encoding its ground station reads (PARAM_ENCODING; "auto"
+asks the status service which conventions each link's station assumes).
 Lists, reads, accepted sets, saves and reloads allocate nothing.
 
 Parts: table.py (the table), encoding.py (how values travel, per link), store.py (storage).
@@ -22,6 +23,8 @@ from .table import ParamTable, ID_LEN, READ_ONLY, REBOOT
 from .table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32  # noqa: F401
 from .table import UINT64, INT64, REAL64  # noqa: F401  (declaring one is an error)
 from .store import ParamStore, Guard, FILE
+
+AFTER = ("status",)  # "auto": the conventions each link's ground station assumes
 
 _MSG_PARAM_REQUEST_READ = const(20)
 _MSG_PARAM_REQUEST_LIST = const(21)
@@ -77,7 +80,7 @@ class Params(ParamStore, LinkEncodings, ParamTable):
         self._pending = []
         self._answers = []
         self._cursor = []
-        self._casts = bytearray()  # per link: its encoding (LinkEncodings)
+        self.conventions = None  # the status service's (LinkEncodings)
         self._error = 0  # the MAV_PARAM_ERROR of the refusal being answered
         self._text = bytearray(_TEXT_LEN)  # "NAME applies after reboot", made in place
         self._data = self._image  # what _load read the file into
@@ -109,7 +112,6 @@ class Params(ParamStore, LinkEncodings, ParamTable):
             self._pending.append(0)
             self._answers.append(0)
             self._cursor.append(0)
-            self._new_link_cast()
 
     # --- sending, paced ------------------------------------------------------------
     def tick(self, now):
@@ -167,7 +169,7 @@ class Params(ParamStore, LinkEncodings, ParamTable):
 
     def _send(self, link, i):
         """One PARAM_VALUE for parameter i, copied straight from the table."""
-        self._fill(link.txbuf, link.begin(), i, self._casts[link.index])
+        self._fill(link.txbuf, link.begin(), i, self.cast_link(link))
         return link.send(_MSG_PARAM_VALUE)
 
     def _reply(self, link, i):
@@ -267,7 +269,7 @@ class Params(ParamStore, LinkEncodings, ParamTable):
         """None if PARAM_SET p may change parameter i, else why not."""
         why = self._may_change(link, i)
         if why is None:
-            why = self._type_refused(i, p)
+            why = self._type_refused(link, i, p)
             if why is not None:
                 self._error = _ERR_TYPE_MISMATCH
         return why

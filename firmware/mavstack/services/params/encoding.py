@@ -9,7 +9,8 @@ clean") and nothing is allocated; only get_int and put_int (start-up, the applic
 messages) make Python ints.
 
 LinkEncodings, a part of Params, says which encoding each link's PARAM_VALUEs travel in:
-one for all, or under "auto" what its ground station was seen to read.
+one for all, or under "auto" C-cast where the link's ground station assumes ArduPilot's
+conventions (the status service's status/conventions.py), bytewise elsewhere.
 
 Reference: docs/services/params.md
 """
@@ -27,21 +28,10 @@ _REAL32 = const(9)
 
 _ID_LEN = const(16)  # param_id: NUL-padded, no NUL when 16 long
 
-_MSG_HEARTBEAT = const(0)
-_MSG_REQUEST_DATA_STREAM = const(66)
-_MSG_COMMAND_INT = const(75)
-_MSG_COMMAND_LONG = const(76)
-_CMD_REQUEST_MESSAGE = const(512)
-_CMD_REQUEST_AUTOPILOT_CAPABILITIES = const(520)
-_MAV_TYPE_GCS = const(6)
-_MAVPROXY_COMPID = const(230)  # MAVProxy's own component id (its source_component)
 _CAP_PARAM_ENCODE_BYTEWISE = const(16)
 _CAP_PARAM_ENCODE_C_CAST = const(131072)
-
-# A link's encoding (LinkEncodings._casts)
-_BYTEWISE = const(0)  # "auto": nothing heard yet
-_CAST = const(1)
-_TOLD = const(2)  # bytewise: it asked for AUTOPILOT_VERSION
+_ARDUPILOT = const(1)  # a link's convention (status/conventions.py)
+_PX4 = const(2)
 
 # What a value is as a key (key()): 0 (fine), or why it has none.
 FRACTION = const(2)  # a float with a fraction where an integer is wanted
@@ -309,27 +299,31 @@ def put_int(buf, o, t, v):
 # --- each link's encoding ------------------------------------------------------------
 
 class LinkEncodings:
-    """The encoding of each link's PARAM_VALUEs, for Params (which has self.ep, the
-    table, self.c_cast, self.auto and self._casts: a byte a link)."""
+    """The encoding of each link's PARAM_VALUEs and the type rules of PARAM_SET, for Params
+    (which has self.ep, the table, self.c_cast, self.auto and self.conventions: the status
+    service's, or None)."""
 
     def _watch(self, ep):
-        """Say the encoding in the capability bits; under "auto" (which says bytewise),
-        hear what each ground station does."""
+        """Say the encoding in the capability bits ("auto" says bytewise) and find the
+        conventions each link's ground station assumes."""
         cast = self.c_cast and not self.auto
         ep.capabilities |= _CAP_PARAM_ENCODE_C_CAST if cast else _CAP_PARAM_ENCODE_BYTEWISE
-        if self.auto:
-            ep.on(_MSG_HEARTBEAT, self._heard_heartbeat)
-            ep.on(_MSG_REQUEST_DATA_STREAM, self._heard_streams)
-            ep.on(_MSG_COMMAND_LONG, self._heard_command)
-            ep.on(_MSG_COMMAND_INT, self._heard_command)
+        status = ep.services.get("status")
+        self.conventions = status.conventions if status is not None else None
 
-    def _new_link_cast(self):
-        """A new link's encoding."""
-        self._casts.append(_CAST if self.c_cast and not self.auto else _BYTEWISE)
+    def cast_link(self, link):
+        """Do link's PARAM_VALUEs carry integers C-cast? Fixed by PARAM_ENCODING, or under
+        "auto" where its ground station assumes ArduPilot's conventions."""
+        if not self.auto:
+            return self.c_cast
+        return self.conventions is not None and self.conventions.of(link) == _ARDUPILOT
+
+    def _px4_link(self, link):
+        return self.conventions is not None and self.conventions.of(link) == _PX4
 
     def _fill(self, buf, off, i, cast):
-        """PARAM_VALUE for parameter i into buf[off:], its value in the link's encoding."""
-        copy4(buf, off, self._wire if cast == _CAST else self._values, 4 * i)
+        """PARAM_VALUE for parameter i into buf[off:], its value C-cast if cast."""
+        copy4(buf, off, self._wire if cast else self._values, 4 * i)
         put16(buf, off + 4, self.count)
         put16(buf, off + 6, i)
         move(buf, off + 8, self._names, _ID_LEN * i, _ID_LEN)
@@ -337,46 +331,20 @@ class LinkEncodings:
 
     def _cast_in(self, link, i, p):
         """Whether PARAM_SET p holds parameter i's value as a float (C-cast) rather than
-        in its type's bytes (docs/services/params.md)."""
-        self._link_state(link)
+        in its type's bytes: typed REAL32 for an integer it does (the number it holds,
+        as ArduPilot reads it; the link's encoding stays as it is), else as the link's."""
         if p[22] != _REAL32 or self._types[i] == _REAL32:
-            return self._casts[link.index] == _CAST
-        if self.auto:
-            self._casts[link.index] = _CAST
+            return self.cast_link(link)
         return True
 
-    def _type_refused(self, i, p):
-        """None if PARAM_SET p's value can be read for parameter i (typed as it, or REAL32),
-        else why not: another integer type's bytes would be misread."""
-        if p[22] == self._types[i] or p[22] == _REAL32:
+    def _type_refused(self, link, i, p):
+        """None if PARAM_SET p's value can be read for parameter i, else why not: another
+        integer type's bytes would be misread; and a float for an integer from a station
+        in PX4's convention is refused as PX4 does (nothing stored), not taken as a cast."""
+        t = self._types[i]
+        if p[22] == t or (p[22] == _REAL32 and not self._px4_link(link)):
             return None
-        return _type_why(p[22], self._types[i])
-
-    # "auto": the last sign heard on a link decides (docs/services/params.md).
-    def _heard_heartbeat(self, link, p):
-        if p[4] == _MAV_TYPE_GCS and link.rx.compid == _MAVPROXY_COMPID:
-            self._link_state(link)
-            if self._casts[link.index] == _BYTEWISE:
-                self._casts[link.index] = _CAST
-
-    def _heard_streams(self, link, p):
-        if self.ep.for_us(p[2], p[3]):
-            self._link_state(link)
-            self._casts[link.index] = _CAST
-
-    def _heard_command(self, link, p):
-        """COMMAND_LONG / COMMAND_INT (command at 28, param1 at 0): a request for
-        AUTOPILOT_VERSION (REQUEST_MESSAGE 148, REQUEST_AUTOPILOT_CAPABILITIES)."""
-        c = p[29] << 8 | p[28]
-        if c == _CMD_REQUEST_AUTOPILOT_CAPABILITIES or (c == _CMD_REQUEST_MESSAGE and _is_148(p)):
-            if self.ep.for_us(p[30], p[31]):
-                self._link_state(link)
-                self._casts[link.index] = _TOLD
-
-
-def _is_148(p):
-    """param1 (p[0:4]) is 148.0, AUTOPILOT_VERSION's id, as a float."""
-    return p[0] == 0 and p[1] == 0 and p[2] == 0x14 and p[3] == 0x43
+        return _type_why(p[22], t)
 
 
 def _type_why(got, want):

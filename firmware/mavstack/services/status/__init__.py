@@ -3,8 +3,9 @@ services and the application share (status.armed, status.flight_mode, status.hom
 and the hooks the application sets (arm_check, mode_check, on_gcs_lost ...), arming, the
 clock (SYSTEM_TIME), PING, STATUSTEXT and the reboot on its way. Its other jobs are
 modules beside it, made here: health.py (SYS_STATUS, the ground station each link hears),
-modes.py (flight modes), operator.py (operator control) and vehicle_commands.py (the
-vehicle's own commands, AUTOPILOT_VERSION, HOME_POSITION).
+conventions.py (ArduPilot's or PX4's, per link), modes.py (flight modes), operator.py
+(operator control) and vehicle_commands.py (the vehicle's own commands,
+AUTOPILOT_VERSION, HOME_POSITION).
 Reference: docs/services/status.md
 """
 from struct import pack_into
@@ -14,6 +15,7 @@ from ...endpoint import REBOOT, SHUTDOWN
 from ...kernels import copy
 from ...link import RANK_VITAL, RANK_OTHER, RANK_AUTO
 from ...statustext import TextQueue, CRITICAL, NOTICE
+from .conventions import Conventions
 from .health import Health
 from .modes import Modes
 from .operator import Operator, on_change_operator_control
@@ -78,14 +80,9 @@ class Status:
         self._airborne = -1  # set_airborne: 1 in the air, 0 on the ground, -1 not told
         self._override = 0  # a MAV_STATE the application set, 0: follow the life cycle
         self._initialised = False
-        # Hooks the application may set
-        self.arm_check = None
-        self.mode_check = None
-        self.flight_mode_check = None
-        self.position = None
-        self.on_gcs_lost = None
-        self.on_gcs_regained = None
-        self.on_hil = None
+        # Hooks the application may set (docs/services/status.md): vetoes, a position, events
+        self.arm_check = self.mode_check = self.flight_mode_check = self.position = None
+        self.on_gcs_lost = self.on_gcs_regained = self.on_hil = self.on_arm = self.on_flight_mode = None
         # SYS_STATUS figures: the application's, and what health.py measures
         self.sensors_present = 0
         self.sensors_enabled = 0
@@ -111,6 +108,7 @@ class Status:
         self.rebooting = 0  # the action on its way: 1 reboot, 2 shutdown; 0 none
         self._reboot_at = 0
         self.texts = TextQueue(text_slots)
+        self.conventions = Conventions()
         self.modes = Modes(())
         self.health = Health(self)
         self.operator = None
@@ -124,6 +122,7 @@ class Status:
         self._links_changed()
         ep.capabilities |= _CAP_MAVLINK2
         ep.on(_MSG_HEARTBEAT, self._on_heartbeat)
+        self.conventions.attach(ep)
         self.modes.attach(ep, self)
         ep.on(_MSG_PING, self._on_ping)
         ep.on(_MSG_SYSTEM_TIME, self._on_system_time)
@@ -142,7 +141,7 @@ class Status:
     def _links_changed(self):
         # Rare (start-up): size the per-link tables and the STATUSTEXT pacing.
         links = self.ep.links
-        self.modes.links_changed(links)
+        self.conventions.links_changed(links)
         self.health.links_changed(links)
         slowest = 0
         for link in links:
@@ -201,6 +200,8 @@ class Status:
                 return result
         self.armed = arm
         self.update_state()
+        if self.on_arm is not None:
+            self.on_arm(arm)  # before the answer: the next command sees what follows
         return _ACCEPTED
 
     def set_mode(self, base_mode, custom_mode=0):

@@ -2,7 +2,7 @@
 (the application's sensors and battery), the loop's load, the links' drop rate and
 errors, and the two sensor bits filled here (pre-arm check, geofence); and the ground
 station each link hears, by its heartbeats (status.on_gcs_lost and on_gcs_regained fire
-from here). Made by the status service (status.health).
+from here; a station heard anew gets a HEARTBEAT at once). Made by the status service (status.health).
 Reference: docs/services/status.md
 """
 from struct import pack_into
@@ -135,6 +135,9 @@ class Health:
         self._gcs_seen[i] = self.status.ep.now
         if self._gcs_state[i] != _GCS_PRESENT:
             self._gcs_state[i] = _GCS_PRESENT
+            # A HEARTBEAT at once: a station that waits briefly for one after its own (as
+            # MAVProxy does before asking for streams) finds the vehicle now.
+            self.status.send_heartbeat(link)
             if self.status.on_gcs_regained is not None:
                 self.status.on_gcs_regained(link)
 

@@ -1,10 +1,11 @@
 """Flight modes: the board's mode table (FLIGHT_MODES), the number each ground station
-reads a mode by (ArduPilot's or PX4's, per link), the ways ground stations ask for a mode
-(SET_MODE, DO_SET_STANDARD_MODE; DO_SET_MODE comes through vehicle_commands.py) and the
-mode state machine: a request is found in the table, vetted by the application's hooks
-and applied to the status service's state (mode, custom_mode, flight_mode, hil). A board
-without a table keeps flag-only modes. AVAILABLE_MODES and CURRENT_MODE where the dialect
-has them. Made by the status service (status.modes).
+reads a mode by (ArduPilot's or PX4's, per link: conventions.py), the ways ground stations
+ask for a mode (SET_MODE, DO_SET_STANDARD_MODE; DO_SET_MODE comes through
+vehicle_commands.py) and the mode state machine: a request is found in the table, vetted
+by the application's hooks and applied to the status service's state (mode, custom_mode,
+flight_mode, hil), then told to the application (on_flight_mode) before it is answered.
+A board without a table keeps flag-only modes. AVAILABLE_MODES and CURRENT_MODE where the
+dialect has them. Made by the status service (status.modes).
 Reference: docs/services/status.md
 """
 from struct import pack_into
@@ -16,17 +17,16 @@ _NUMBER = const(0)
 _NAME = const(1)
 _FLAGS = const(2)
 
-_ARDUPILOT = const(0)
-_PX4 = const(1)
-_MAVSDK_SYSID = const(245)  # MAVSDK's ground-station system id
-_MAV_TYPE_GCS = const(6)
+_UNKNOWN = const(0)  # conventions.py
+_PX4 = const(2)
 _PX4_MANUAL = const(1)  # PX4's MANUAL main mode: a multicopter's is stabilized
 _PX4_STABILIZED = const(7)
+_PX4_AUTO = const(4)  # AUTO needs a sub mode: the others stand alone
+_PX4_LAST_MAIN = const(8)  # RATTITUDE, the last PX4 main mode a station may ask for
 _FLAG_CHOICE = const(0x5C)  # MANUAL_INPUT | STABILIZE | GUIDED | AUTO: what picks a row
 _NOT_USER_SELECTABLE = const(2)  # MAV_MODE_PROPERTY
 _AUTO_OR_GUIDED = const(12)
 
-_MSG_HEARTBEAT = const(0)
 _MSG_SET_MODE = const(11)
 _MSG_AVAILABLE_MODES = const(435)
 _MSG_CURRENT_MODE = const(436)
@@ -52,7 +52,6 @@ class Modes:
         self.row = -1  # the current mode's row in the table, -1: none (flag-only modes)
         self.intended = -1  # the row a ground station last asked for
         self.changed = False  # a new row since CURRENT_MODE was last announced
-        self._conv = bytearray(0)  # per link: _ARDUPILOT or _PX4
         self._index = 0  # AVAILABLE_MODES asked for: 0 all, else one (1-based)
         self._request = None  # the REQUEST_MESSAGE handler wrapped (wrap_request_message)
         self.status = None  # the status service, once attached
@@ -66,7 +65,6 @@ class Modes:
 
     def attach(self, ep, status):
         self.status = status
-        ep.on(_MSG_HEARTBEAT, self._on_heartbeat)
         ep.on(_MSG_SET_MODE, self._on_set_mode)
         if self.table:
             ep.commands[_CMD_DO_SET_STANDARD_MODE] = self._set_standard_mode
@@ -74,11 +72,6 @@ class Modes:
             ep.producers[_MSG_AVAILABLE_MODES] = self.send_available_modes
         if ep.has(_MSG_CURRENT_MODE):
             ep.producers[_MSG_CURRENT_MODE] = self.send_current_mode
-
-    def links_changed(self, links):
-        fixed = _PX4 if self.numbering == "px4" else _ARDUPILOT
-        while len(self._conv) < len(links):
-            self._conv = self._conv + bytes((fixed,))
 
     def wrap_request_message(self):
         # Once all services are in: AVAILABLE_MODES needs REQUEST_MESSAGE's param2 (which
@@ -89,18 +82,38 @@ class Modes:
             if self._request is not None:
                 commands[_CMD_REQUEST_MESSAGE] = self._request_message
 
-    # --- conventions ----------------------------------------------------------------
+    # --- numbering, per link ----------------------------------------------------------
     def px4_link(self, link):
-        i = link.index
-        return i < len(self._conv) and self._conv[i] == _PX4
+        """Does link's ground station read and set modes PX4's way (MODE_NUMBERING)?"""
+        if self.numbering == "auto":
+            return self.status.conventions.of(link) == _PX4
+        return self.numbering == "px4"
 
-    def _learn_px4(self, link):
-        if self.numbering == "auto" and link.index < len(self._conv):
-            self._conv[link.index] = _PX4
+    def undecided(self, link):
+        """Has link's ground station not shown yet which numbers it means ("auto")?"""
+        return self.numbering == "auto" and self.status.conventions.of(link) == _UNKNOWN
 
-    def _on_heartbeat(self, link, p):
-        if p[4] == _MAV_TYPE_GCS and link.rx.sysid == _MAVSDK_SYSID:
-            self._learn_px4(link)
+    def either(self, number):
+        """DO_SET_MODE's param2 from a station whose convention is not known yet (param3 0):
+        an ArduPilot number, or a PX4 main mode that needs no sub mode -> the custom mode,
+        or -1 when the two readings come to different modes (refused, and said why)."""
+        if number < _PX4_MANUAL or number > _PX4_LAST_MAIN or number == _PX4_AUTO:
+            return number
+        ardupilot = self.by_number(number)
+        px4 = self._by_px4(number << 16)
+        if ardupilot == px4:
+            return number
+        status = self.status
+        status.reason = "ArduPilot or PX4 number?"
+        try:
+            text = "Mode %d: ArduPilot %s or PX4 %s? Refused" % (number, self._name(ardupilot), self._name(px4))
+        except MemoryError:  # a board may lock its heap
+            text = b"Mode: ArduPilot or PX4 number? Refused"
+        status.statustext(_WARNING, text)
+        return -1
+
+    def _name(self, row):
+        return self.table[row][_NAME] if row >= 0 else "(none)"
 
     def custom_for(self, link, row, number):
         """HEARTBEAT.custom_mode of mode `row` (-1: none) as this link reads it."""
@@ -172,29 +185,34 @@ class Modes:
         return -1
 
     # --- the mode state machine ------------------------------------------------------
-    def set_mode(self, base_mode, custom_mode=0):
-        """A ground station's request (status.set_mode) -> MAV_RESULT."""
-        status = self.status
-        status.reason = None
+    def set_mode(self, base_mode, custom_mode=0, link=None):
+        """A ground station's request (status.set_mode; link: where it came from, if
+        known) -> MAV_RESULT. (self.status throughout: few locals, docs/design.md)"""
+        self.status.reason = None
         if base_mode & _MODE_HIL and not self.flags_supported & _MODE_HIL:
-            status.reason = "HIL not supported"
-            status.statustext(_WARNING, b"Mode: HIL not supported")
+            self.status.reason = "HIL not supported"
+            self.status.statustext(_WARNING, b"Mode: HIL not supported")
             return _DENIED
         row = self.find(base_mode & 0x5F, custom_mode)
         if row >= 0:
-            result = self.enter(row, True)
+            result = self.enter(row, link or True)
         elif row == -1 or custom_mode:
-            status.reason = "no such mode"  # a constant: a board may lock its heap
-            status.statustext(_WARNING, b"Mode: no such mode")
+            self.status.reason = "no such mode"  # a constant: a board may lock its heap
+            self.status.statustext(_WARNING, b"Mode: no such mode")
             return _DENIED
         else:
             result = self._flag_mode(base_mode & 0x5E)
-        if result == _ACCEPTED and bool(base_mode & _MODE_HIL) != status.hil:
-            status.hil = not status.hil  # HIL_ENABLED goes with any mode
-            status.update_state()
-            if status.on_hil is not None:
-                status.on_hil(status.hil)  # the application blocks (or frees) its actuators
+        if result == _ACCEPTED and bool(base_mode & _MODE_HIL) != self.status.hil:
+            self._toggle_hil()
         return result
+
+    def _toggle_hil(self):
+        # HIL_ENABLED goes with any mode; the application blocks (or frees) its actuators.
+        status = self.status
+        status.hil = not status.hil
+        status.update_state()
+        if status.on_hil is not None:
+            status.on_hil(status.hil)
 
     def _flag_mode(self, flags):
         # A board without a mode table: the flags alone.
@@ -213,14 +231,20 @@ class Modes:
         return _ACCEPTED
 
     def enter(self, row, asked):
-        """Into mode `row` of the table: asked (by a ground station) goes through the
-        vetoes, the application's own change (set_flight_mode) does not."""
+        """Into mode `row` of the table. asked (True, or the link of the ground station
+        that asked) goes through the vetoes and is told to the application
+        (on_flight_mode) before it is answered; the application's own change
+        (set_flight_mode, asked False) is neither."""
         if asked:
             result = self._vet(row)
             if result != _ACCEPTED:
                 return result
             self.intended = row
+            if asked is not True:
+                self.status.conventions.took(asked)
         self._apply(row)
+        if asked and self.status.on_flight_mode is not None:
+            self.status.on_flight_mode(self.table[row][_NAME])
         return _ACCEPTED
 
     def _vet(self, row):
@@ -264,10 +288,7 @@ class Modes:
         if not self.status.ep.allows(link):
             self.status.statustext(_WARNING, b"Mode: GCS not in control")
             return
-        custom = u32(p, 0)
-        if custom >= 0x10000:  # PX4-encoded: the station reads modes PX4's way
-            self._learn_px4(link)
-        self.set_mode(p[5], custom)
+        self.set_mode(p[5], u32(p, 0), link)  # (a PX4 encoding taught the link: conventions.py)
 
     def _set_standard_mode(self, cmd):
         # param1: MAV_STANDARD_MODE. One the vehicle does not have is not supported.
@@ -280,7 +301,7 @@ class Modes:
         if not self.status.ep.allows(cmd.link):
             self.status.statustext(_WARNING, b"Mode: GCS not in control")
             return _DENIED
-        return self.enter(row, True)
+        return self.enter(row, cmd.link)
 
     def _request_message(self, cmd):
         self._index = 0

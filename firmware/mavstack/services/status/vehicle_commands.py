@@ -10,6 +10,7 @@ from struct import pack_into
 from ... import VERSION
 from ...compat import const
 from ...statustext import CRITICAL, WARNING
+from .conventions import shows_px4
 
 _ACCEPTED = const(0)
 _TEMPORARILY_REJECTED = const(1)
@@ -60,10 +61,14 @@ class VehicleCommands:
             return _DENIED
         if not self._in_control(cmd, b"Arm: GCS not in control"):
             return _DENIED
-        return self.status.arm(arm == 1, cmd.finite(2) and cmd.int(2) == _FORCE_ARM)
+        result = self.status.arm(arm == 1, cmd.finite(2) and cmd.int(2) == _FORCE_ARM)
+        if result == _ACCEPTED:
+            self.status.conventions.took(cmd.link)
+        return result
 
     def set_mode(self, cmd):
-        # param1: base mode (MAV_MODE_FLAG bits), param2: custom mode (NaN: 0).
+        # param1: base mode (MAV_MODE_FLAG bits), param2: custom mode (NaN: 0), param3:
+        # PX4's sub mode (docs/services/status.md: which numbers a station means).
         if not cmd.finite(1):
             return _DENIED
         base = cmd.int(1)
@@ -74,15 +79,27 @@ class VehicleCommands:
             custom = cmd.int(2)
         if base < 0 or base > 255 or custom < 0:
             return _DENIED
-        if custom and base & 1 and self.status.modes.px4_link(cmd.link):
-            # PX4's convention (MAVSDK): param2 main mode, param3 sub mode.
-            sub = cmd.int(3) if cmd.finite(3) else 0
-            if custom > 255 or sub < 0 or sub > 63:
+        if custom and base & 1:
+            custom = self._custom_mode(cmd, custom)
+            if custom < 0:
                 return _DENIED
-            custom = custom << 16 | sub << 24
         if not self._in_control(cmd, b"Mode: GCS not in control"):
             return _DENIED
-        return self.status.set_mode(base, custom)
+        return self.status.modes.set_mode(base, custom, cmd.link)
+
+    def _custom_mode(self, cmd, number):
+        """DO_SET_MODE's custom mode as its station means it: PX4's main and sub mode
+        (param2, param3) from a station in PX4's convention or a request that shows it,
+        ArduPilot's number from one in ArduPilot's; both readings tried for a station not
+        known yet -> the custom mode, or -1 (refused)."""
+        modes = self.status.modes
+        auto = modes.numbering == "auto"
+        if modes.px4_link(cmd.link) or auto and shows_px4(cmd.payload, _CMD_DO_SET_MODE):
+            sub = cmd.int(3) if cmd.finite(3) else 0
+            if number > 255 or sub < 0 or sub > 63:
+                return -1
+            return number << 16 | sub << 24
+        return modes.either(number) if modes.undecided(cmd.link) else number
 
     def reboot_shutdown(self, cmd):
         # param1: 0 nothing, 1 reboot, 2 shutdown, 3 reboot to bootloader; param6: conditions.
