@@ -24,7 +24,7 @@ from mission_gcs import MissionClient, plan, same
 from test_mcu import _gate
 
 SAFE_TEXT = "Safe mode after 3 resets: status,params,commands"
-FAULTS_MANIFEST = os.path.join(ROOT, "tests", "watchdog", "manifest.py")
+FAULTS_MANIFEST = os.path.join(ROOT, "tests", "watchdog", "faults_manifest.py")
 PREFLIGHT_STORAGE = 245
 PREFLIGHT_REBOOT_SHUTDOWN = 246
 INT32, REAL32 = 6, 9

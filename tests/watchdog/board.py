@@ -1,6 +1,6 @@
 """The emulated M3 with faults on demand (faults.py), frozen as `board` into the
-firmware of tests/test_mcu_watchdog.py (manifest.py), so that the vehicle its watchdog
-restarts has them too. Its clean minute is 5 s, for the test."""
+firmware of tests/test_mcu_watchdog.py (faults_manifest.py), so that the vehicle its
+watchdog restarts has them too. Its clean minute is 5 s, for the test."""
 from qemu_m3 import *  # noqa: F401,F403
 from qemu_m3 import PARAMS as _PARAMS, application as _application
 from faults import FAULT_PARAM, faulty
