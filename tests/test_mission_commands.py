@@ -66,7 +66,7 @@ def test_planners_commands_are_accepted(rig):
     (Item(2, 195, 0, 1, 0, 0, 0, 0, 0, 0, 0.0), UNSUPPORTED_FRAME, "Mission item 1: cmd 195 frame 2 unsupported"),
     (Item(2, 93, 0, 1, NAN, 0, 0, 0, 0, 0, 0.0), INVALID_PARAM1, "Mission item 1: cmd 93 param1 invalid"),
     (Item(3, 16, 0, 1, 0, 0, 0, 0, INT32_MAX, LON0, 5.0), INVALID_PARAM5_X, "Mission item 1: cmd 16 x/lat invalid"),
-    (Item(3, 22, 0, 1, 0, 0, 0, 0, INT32_MAX, INT32_MAX, NAN), INVALID_PARAM7, "Mission item 1: cmd 22 z/alt invalid"),
+    (Item(3, 16, 0, 1, 0, 0, 0, 0, LAT0, LON0, NAN), INVALID_PARAM7, "Mission item 1: cmd 16 z/alt invalid"),
 ])
 def test_refusal_names_item_and_command(rig, item, code, text):
     assert rig.upload([waypoint(0), waypoint(1)]) == ACCEPTED

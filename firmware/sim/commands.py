@@ -1,7 +1,7 @@
 """The simulated vehicle's flight commands: the half of the flight pilot (pilot.py) that
 answers ground stations. Each handler returns a MAV_RESULT; a refusal says why in a
-STATUSTEXT. NAV_TAKEOFF and NAV_LAND answer IN_PROGRESS and finish when the flight
-does. Reference: docs/sim.md.
+STATUSTEXT. NAV_TAKEOFF and NAV_LAND answer IN_PROGRESS (again with their progress) and
+finish when the flight does. Reference: docs/sim.md.
 """
 import struct
 
@@ -28,7 +28,7 @@ _MAX_SPEED = 100.0  # m/s: the fastest a reposition may ask for
 
 class FlightCommands:
     """The command handlers of the flight pilot (pilot.FlightPilot, whose state they use,
-    with its set_mode, defer, refuse and flying)."""
+    with its set_mode and rules), and the command under way."""
 
     def take_commands(self):
         """Answer the flight commands, MAVProxy's guided items and the seed's goto."""
@@ -50,11 +50,15 @@ class FlightCommands:
             seed.on_goto = self._cmd_goto  # the seed's OVERRIDE_GOTO to a position
 
     def _cmd_takeoff(self, cmd):
-        # param7: metres above home (COMMAND_INT in a global frame: MSL); NaN: MIS_TAKEOFF_ALT.
+        # param7: metres above home (COMMAND_INT: MSL in frames 0 and 5); NaN:
+        # MIS_TAKEOFF_ALT. param4: the heading there (NaN: kept); params 5, 6: where to
+        # go once up (unset or 0, 0: straight up here).
         if self.status is None or not self.status.armed:
             return self.refuse(DENIED, "Takeoff: disarmed")
         if self.landed != ON_GROUND:
             return self.refuse(FAILED, "Takeoff: already flying")
+        if cmd.is_int and cmd.frame not in _GLOBAL_FRAMES:
+            return self.refuse(DENIED, "Takeoff: frame %d not supported" % cmd.frame)
         ground = self.mission.ground()
         if not cmd.finite(7):
             alt = self.mission.setting(None, "MIS_TAKEOFF_ALT", 10.0)
@@ -64,10 +68,26 @@ class FlightCommands:
             alt = cmd.float(7)
         if not 0.5 <= alt <= 10000.0:
             return self.refuse(DENIED, "Takeoff: altitude %.1f m out of range" % alt)
+        to = self._takeoff_point(cmd)
+        if to is not None and not self._allowed(cmd):
+            return DENIED
+        self.status.conventions.took(cmd.link)
         self.set_mode("TAKEOFF")
         self.climb_to = ground + alt
+        self.takeoff_to = to
+        self.takeoff_yaw = cmd.float(4) % 360.0 if cmd.finite(4) else None
         self.ep.statustext(INFO, "Takeoff to %.1f m" % alt)
         return self.defer(cmd)
+
+    def _takeoff_point(self, cmd):
+        """NAV_TAKEOFF's (lat, lon) to go to once up, None for here (unset, or 0, 0)."""
+        if cmd.is_int:
+            if cmd.int(5) == _INT32_MAX or cmd.int(6) == _INT32_MAX or not (cmd.int(5) or cmd.int(6)):
+                return None
+        elif not (cmd.finite(5) and cmd.finite(6)) or not (cmd.float(5) or cmd.float(6)):
+            return None
+        point = self._point(cmd)
+        return (point[0], point[1]) if point is not None else None
 
     def _cmd_land(self, cmd):
         status = self.status
@@ -80,6 +100,7 @@ class FlightCommands:
         if not self._allowed(cmd):
             return DENIED
         at = self._point(cmd)
+        status.conventions.took(cmd.link)
         self.set_mode("LAND")
         if at is not None and (at[0] or at[1]):
             self.land_at = (at[0], at[1])
@@ -89,6 +110,7 @@ class FlightCommands:
         refused = self.flying("RTL")
         if refused is not None:
             return refused
+        self.status.conventions.took(cmd.link)
         self.set_mode("RTL")
         return ACCEPTED
 
@@ -199,7 +221,8 @@ class FlightCommands:
         return ACCEPTED
 
     def _cmd_mission_start(self, cmd):
-        # param1: first item, param2: last item (0 as QGroundControl sends it: to the end).
+        # param1: first item (in ArduPilot's convention item 0 is home: from 1), param2:
+        # last item (0 as QGroundControl sends it: to the end).
         runner = self.runner
         if not self.ep.allows(cmd.link):
             return DENIED
@@ -207,7 +230,8 @@ class FlightCommands:
             return self.refuse(DENIED, "Mission: no mission")
         if self.status is None or not self.status.armed:
             return self.refuse(DENIED, "Mission: disarmed, arm first")
-        first = 0 if cmd.nan(1) else cmd.int(1)
+        self.status.conventions.took(cmd.link)
+        first = max(0 if cmd.nan(1) else cmd.int(1), self.first_item())
         last = -1 if cmd.nan(2) else cmd.int(2)
         if not runner.start(first, last):
             return self.refuse(DENIED, "Mission: no item %d" % first)
@@ -244,3 +268,50 @@ class FlightCommands:
         self.set_mode("GUIDED")
         self.hold_at = (x, y, alt)
         return _MISSION_ACCEPTED
+
+    # --- the command under way --------------------------------------------------------
+    def report_progress(self, dt):
+        # IN_PROGRESS again every half second: the ground station knows it is under way.
+        if self.pending is None:
+            return
+        self._since_progress += dt
+        if self._since_progress < 0.5:
+            return
+        self._since_progress = 0.0
+        sim = self.sim
+        ground = self.mission.ground()
+        if self.pending_cmd == 22:
+            done = (sim.alt - ground) / max(self.climb_to - ground, 0.1)
+        else:
+            done = 1.0 - (sim.alt - ground) / max(self.hold_at[2] - ground, 0.1)
+        self.pending.progress(max(0, min(99, int(done * 100))))
+
+    def refuse(self, result, text):
+        self.ep.statustext(WARNING, text)
+        return result
+
+    def defer(self, cmd):
+        if self.pending is not None:
+            self.refuse_pending("superseded")
+        self.pending = cmd.defer()
+        self.pending_cmd = cmd.command
+        self._since_progress = 0.0
+        return IN_PROGRESS
+
+    def finish(self, result):
+        if self.pending is not None:
+            pending, self.pending = self.pending, None
+            pending.done(result)
+
+    def refuse_pending(self, why):
+        name = "Takeoff" if self.pending_cmd == 22 else "Land"
+        self.ep.statustext(WARNING, name + ": " + why)
+        self.finish(FAILED)
+
+    def flying(self, what):
+        """None if armed and in the air, else the refusal (MAV_RESULT) with its STATUSTEXT."""
+        if self.status is None or not self.status.armed:
+            return self.refuse(DENIED, what + ": disarmed")
+        if self.landed == ON_GROUND:
+            return self.refuse(DENIED, what + ": on the ground, take off first")
+        return None

@@ -20,6 +20,7 @@ class MissionPilot(Motion):
         self._arrived = 0.0  # seconds spent at the item's position
         self._yaw_target = None
         self._wait = None  # NAV_DELAY: seconds to wait
+        self._up = False  # NAV_TAKEOFF: at its altitude (then to its position, its heading)
         self.touched_down = False  # a LAND item has just put the vehicle on the ground
 
     def step(self, dt):
@@ -31,12 +32,15 @@ class MissionPilot(Motion):
             return
         item = runner.item
         if item.seq != self._seq or runner.started_ms != self._started:
+            # The mission starts over (at item 1 where item 0 is home): speeds from the parameters.
+            over = item.seq == 0 or (item.seq == 1 and self._seq != 0)
             self._seq = item.seq
             self._started = runner.started_ms
             self._arrived = 0.0
             self._yaw_target = None
             self._wait = None
-            if item.seq == 0:  # the mission starts over: speeds from the parameters
+            self._up = False
+            if over:
                 self.sim.roi = None
                 self.reset_speeds()
             else:
@@ -75,8 +79,8 @@ class MissionPilot(Motion):
             ground = self.home()[2] if math.isnan(item.z) else alt
             self.touched_down = self.go(lat, lon, ground, dt, 0.2)
             return self.touched_down
-        if cmd == 22:  # TAKEOFF, straight up
-            return self.go(sim.lat, sim.lon, self._position(item)[2], dt, 0.5)
+        if cmd == 22:  # TAKEOFF
+            return self._takeoff(item, dt)
         if cmd == 112:  # CONDITION_DELAY
             self.hold()
             self._arrived += dt
@@ -136,6 +140,21 @@ class MissionPilot(Motion):
         elif item.frame in (3, 6, 10, 11):  # relative to home (terrain: no terrain data here)
             alt += self.home()[2]
         return lat, lon, alt
+
+    def _takeoff(self, item, dt):
+        """NAV_TAKEOFF: straight up to its altitude (NaN: MIS_TAKEOFF_ALT above home), then
+        to its position if it has one (x, y unset or 0: here), then to its heading
+        (param4, NaN: kept) -> True once done."""
+        sim = self.sim
+        lat, lon, alt = self._position(item)
+        if math.isnan(item.z):
+            alt = self.home()[2] + self.setting(None, "MIS_TAKEOFF_ALT", 10.0)
+        if not self._up:
+            self._up = self.go(sim.lat, sim.lon, alt, dt, 0.05)
+            return False
+        if not self.go(lat, lon, alt, dt, 0.05):
+            return False
+        return math.isnan(item.param4) or self.turn(item.param4 % 360.0, self.turn_rate, dt)
 
     def _delay(self, item, dt):
         """NAV_DELAY: hold for param1 s, or (param1 -1) until hour:minute:second UTC in

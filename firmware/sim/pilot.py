@@ -1,20 +1,22 @@
 """The simulated vehicle's flight control: what it does in each flight mode, the flight
 commands under way (their handlers: commands.py), the landed state and airborne flag
-telemetry tells, the vetoes on mode changes and arming, and where the failsafes
-(failsafe.py) hook in. Reference: docs/sim.md.
+telemetry tells, the vetoes on mode changes and arming, the rules that differ between
+ArduPilot's and PX4's conventions (as the ground station commanding it assumes), and
+where the failsafes (failsafe.py) hook in. Reference: docs/sim.md.
 """
 import math
 
 from mavstack.services.inputs import POSITION_GLOBAL, POSITION_LOCAL
+from mavstack.services.status.conventions import ARDUPILOT, PX4
 
-from .commands import (ACCEPTED, DENIED, FAILED, IN_PROGRESS, INFO, PILOT_MODES, WARNING, IN_AIR,
-                       LANDING, ON_GROUND, TAKING_OFF, FlightCommands)
+from .commands import ACCEPTED, INFO, PILOT_MODES, IN_AIR, LANDING, ON_GROUND, TAKING_OFF, FlightCommands
 from .failsafe import Failsafe
 from .inputs import PilotInputs
 from .mission import MissionPilot
 from .motion import distance
 
-_GROUND_M = 0.05  # this close to the ground is on it
+_GROUND_M = 0.05  # this close to the ground is on it (and to a point held: there)
+_HOLDING = ("LOITER", "GUIDED", "STABILIZE", "ALT_HOLD", "POSITION")  # armable, nothing to fly at once
 
 
 class FlightPilot(FlightCommands):
@@ -32,6 +34,9 @@ class FlightPilot(FlightCommands):
         self.guided_speed = None  # DO_REPOSITION's speed for this leg (None: the default)
         self.guided_yaw = None  # ... its heading on arrival (degrees)
         self.climb_to = None  # TAKEOFF's altitude (MSL)
+        self.takeoff_to = None  # ... and (lat, lon) to go to once up there (None: here)
+        self.takeoff_yaw = None  # ... and the heading (degrees) to turn to there
+        self.armable = "LOITER"  # the last holding mode flown: PX4's rules go back to it on disarm
         self.rtl_leg = 0  # 0 up to rtl_alt, 1 home, 2 down
         self.rtl_alt = 0.0
         self.land_at = None  # (lat, lon) of a NAV_LAND somewhere else
@@ -43,7 +48,6 @@ class FlightPilot(FlightCommands):
         self.landed = ON_GROUND
         self._idle_s = 0.0  # seconds armed on the ground with nothing to do
         self._airborne = None
-        self._asked = False  # a ground station's mode request was accepted since the last step
         self._setpoint = False  # a position target arrived (flown in GUIDED, as ArduPilot does)
         self.guided_velocity = None  # (vn, ve, vd, yaw rate, seconds left) of one in GUIDED
         self._fly = {"TAKEOFF": self._fly_takeoff, "LOITER": self._fly_hold, "GUIDED": self._fly_guided,
@@ -55,7 +59,9 @@ class FlightPilot(FlightCommands):
         status = self.status
         if status is not None:
             status.flight_mode_check = self._mode_check
+            status.on_flight_mode = self._entered  # before the ACK: the next command sees it
             status.arm_check = self._arm_check
+            status.on_arm = self._arm_changed
             status.on_gcs_lost = self.failsafe.gcs_lost
             status.on_gcs_regained = self.failsafe.gcs_regained
         self.take_commands()
@@ -74,9 +80,8 @@ class FlightPilot(FlightCommands):
         mode = status.flight_mode if status is not None else None
         if mode is None:  # a board without a mode table: its AUTO flag
             mode = "AUTO" if status is not None and status.auto else "LOITER"
-        if mode != self.mode or self._asked:
-            self._asked = False
-            self._entered(mode)  # a ground station's change (or the same mode again: afresh)
+        if mode != self.mode:
+            self._entered(mode)  # (a ground station's change was entered as it was taken)
         self.failsafe.tick(dt)
         if status is None or not status.armed:
             self._disarmed(dt)
@@ -87,7 +92,7 @@ class FlightPilot(FlightCommands):
         else:
             self._fly_hold(dt)
         self._update_landed()
-        self._report_progress(dt)
+        self.report_progress(dt)
         self._idle_disarm(dt)
 
     def set_mode(self, name):
@@ -97,20 +102,24 @@ class FlightPilot(FlightCommands):
         self._entered(name)
 
     def _entered(self, mode):
+        # A mode entered (a ground station's request: the same mode again starts afresh).
         prev, self.mode = self.mode, mode
         sim = self.sim
         runner = self.runner
         if prev == "AUTO" and mode != "AUTO" and runner is not None and runner.running:
             runner.pause()
-        if mode == "AUTO" and runner is not None and runner.state == 5:  # COMPLETE: fly it again
-            runner.start(0)
+        if mode == "AUTO" and runner is not None:
+            self._auto_from(runner, self.first_item())
+        if mode in _HOLDING:
+            self.armable = mode
         if self.pending is not None and not (self.pending_cmd == 22 and mode == "TAKEOFF"
                                              or self.pending_cmd == 21 and mode == "LAND"):
-            self._refuse_pending("interrupted by mode " + mode)
+            self.refuse_pending("interrupted by mode " + mode)
         if mode != "LOITER":
             self.failsafe.left = None  # a ground station took over from the failsafe
             self.paused_mode = None
         self.hold_at = (sim.lat, sim.lon, sim.alt)
+        self.takeoff_to = self.takeoff_yaw = None
         self.guided_speed = self.guided_yaw = self.guided_velocity = None
         self._setpoint = False
         self.land_at = None
@@ -148,28 +157,12 @@ class FlightPilot(FlightCommands):
             return item is not None and item.command in (20, 21)
         return False
 
-    def _report_progress(self, dt):
-        # IN_PROGRESS again every half second: the ground station knows it is under way.
-        if self.pending is None:
-            return
-        self._since_progress += dt
-        if self._since_progress < 0.5:
-            return
-        self._since_progress = 0.0
-        sim = self.sim
-        ground = self.mission.ground()
-        if self.pending_cmd == 22:
-            done = (sim.alt - ground) / max(self.climb_to - ground, 0.1)
-        else:
-            done = 1.0 - (sim.alt - ground) / max(self.hold_at[2] - ground, 0.1)
-        self.pending.progress(max(0, min(99, int(done * 100))))
-
     # --- the modes ----------------------------------------------------------------------
     def _disarmed(self, dt):
         sim = self.sim
         m = self.mission
         if self.pending is not None:
-            self._refuse_pending("disarmed")
+            self.refuse_pending("disarmed")
         runner = self.runner
         if runner is not None and runner.running:
             runner.pause()
@@ -187,7 +180,7 @@ class FlightPilot(FlightCommands):
             m.hold()
             return
         lat, lon, alt = self.hold_at
-        if m.go(lat, lon, alt, dt, 0.3, speed=self.guided_speed) and self.guided_yaw is not None:
+        if m.go(lat, lon, alt, dt, _GROUND_M, speed=self.guided_speed) and self.guided_yaw is not None:
             m.turn(self.guided_yaw, m.turn_rate, dt)
 
     def _fly_guided(self, dt):
@@ -215,12 +208,19 @@ class FlightPilot(FlightCommands):
         self._setpoint = self.mode == "GUIDED"
 
     def _fly_takeoff(self, dt):
-        sim = self.sim
-        lat, lon = self.hold_at[0], self.hold_at[1]
-        if self.mission.go(lat, lon, self.climb_to, dt, 0.3):
-            self.ep.statustext(INFO, "Takeoff: at %.1f m" % (sim.alt - self.mission.ground()))
-            self._finish(ACCEPTED)
-            self.set_mode("LOITER")
+        # Straight up to the altitude, then over to takeoff_to (if any), then the heading.
+        m = self.mission
+        if not m.go(self.hold_at[0], self.hold_at[1], self.climb_to, dt, _GROUND_M):
+            return
+        if self.takeoff_to is not None:
+            self.hold_at = (self.takeoff_to[0], self.takeoff_to[1], self.climb_to)
+            self.takeoff_to = None
+            return
+        if self.takeoff_yaw is not None and not m.turn(self.takeoff_yaw, m.turn_rate, dt):
+            return
+        self.ep.statustext(INFO, "Takeoff: at %.1f m" % (self.sim.alt - m.ground()))
+        self.finish(ACCEPTED)
+        self.set_mode(self.after_takeoff())
 
     def _fly_land(self, dt):
         sim = self.sim
@@ -257,10 +257,10 @@ class FlightPilot(FlightCommands):
         sim = self.sim
         sim.alt = self.mission.ground()
         self.mission.hold()
+        self.finish(ACCEPTED)  # (first: PX4's rules leave LAND on the disarm)
         if self.status is not None and self.status.armed:
             self.status.arm(False, True)  # (forced: this is the vehicle's own decision)
             self.ep.statustext(INFO, "Landed: disarmed")
-        self._finish(ACCEPTED)
 
     def _fly_rtl(self, dt):
         sim = self.sim
@@ -321,48 +321,47 @@ class FlightPilot(FlightCommands):
             runner = self.runner
             if runner is None or runner.store.count == 0:
                 return "no mission"
-        answer = None
         if self.inputs is not None and hasattr(self.inputs, "mode_check"):
-            answer = self.inputs.mode_check(name)
-        self._asked = answer is None  # (the last veto: the mode is entered now)
-        return answer
+            return self.inputs.mode_check(name)
+        return None
 
     def _arm_check(self, arm):
         if arm and self.mode in ("LAND", "RTL"):
-            return "mode %s: not armable" % self.mode  # (ArduPilot's rule: it would land at once)
+            return "mode %s: not armable" % self.mode  # (it would land at once)
         if arm:
             return self.sim.pre_arm_check()
         if self.landed != ON_GROUND:
             return "in the air: land first (or force)"
         return None
 
-    # --- commands ---------------------------------------------------------------------------
-    def refuse(self, result, text):
-        self.ep.statustext(WARNING, text)
-        return result
+    # --- ArduPilot's rules or PX4's: those of the station that commands it ------------------
+    def rules(self):
+        """ARDUPILOT, PX4 or 0 (neither known): the conventions of the ground station whose
+        request (a mode, arming, a flight command) the vehicle last took."""
+        return self.status.conventions.last if self.status is not None else 0
 
-    def defer(self, cmd):
-        if self.pending is not None:
-            self._refuse_pending("superseded")
-        self.pending = cmd.defer()
-        self.pending_cmd = cmd.command
-        self._since_progress = 0.0
-        return IN_PROGRESS
+    def _arm_changed(self, armed):
+        # Disarmed in LAND or RTL (landed, or by a ground station): PX4 goes back to the
+        # last armable mode at once, so a station that flies again just arms; ArduPilot
+        # stays (and refuses to arm there: _arm_check).
+        if not armed and self.mode in ("LAND", "RTL") and self.rules() == PX4:
+            self.set_mode(self.armable)
 
-    def _finish(self, result):
-        if self.pending is not None:
-            pending, self.pending = self.pending, None
-            pending.done(result)
+    def first_item(self):
+        """The item a mission starts from: 1 in ArduPilot's convention (item 0 is home),
+        else 0 (the first item, as MAVLink's mission protocol and PX4 have it)."""
+        runner = self.runner
+        return 1 if self.rules() == ARDUPILOT and runner is not None and runner.store.count > 1 else 0
 
-    def _refuse_pending(self, why):
-        name = "Takeoff" if self.pending_cmd == 22 else "Land"
-        self.ep.statustext(WARNING, name + ": " + why)
-        self._finish(FAILED)
+    def _auto_from(self, runner, first):
+        # AUTO entered: a mission flown to its end starts again, one not started starts
+        # past home's row.
+        if runner.state == 5:  # COMPLETE
+            runner.start(first)
+        elif runner.state == 2 and runner.current < first:  # NOT_STARTED
+            runner.set_current(first)
 
-    def flying(self, what):
-        """None if armed and in the air, else the refusal (MAV_RESULT) with its STATUSTEXT."""
-        if self.status is None or not self.status.armed:
-            return self.refuse(DENIED, what + ": disarmed")
-        if self.landed == ON_GROUND:
-            return self.refuse(DENIED, what + ": on the ground, take off first")
-        return None
+    def after_takeoff(self):
+        """The mode a takeoff ends in: GUIDED in ArduPilot's convention (ArduCopter takes
+        off in it and stays), else LOITER (PX4's Hold). Both hold there."""
+        return "GUIDED" if self.rules() == ARDUPILOT else "LOITER"

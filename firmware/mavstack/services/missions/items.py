@@ -63,7 +63,7 @@ _MISSION_RULES = (
     b"\x13\x00\xd1"  # 19 NAV_LOITER_TIME: _POS | _P7 | _HERE | _P1
     b"\x14\x00\x00"  # 20 NAV_RETURN_TO_LAUNCH
     b"\x15\x00\x90"  # 21 NAV_LAND: _POS | _HERE (z NaN: land at ground level)
-    b"\x16\x00\xd0"  # 22 NAV_TAKEOFF: _POS | _P7 | _HERE
+    b"\x16\x00\x90"  # 22 NAV_TAKEOFF: _POS | _HERE (z NaN: the default takeoff altitude)
     b"\x1f\x00\xd0"  # 31 NAV_LOITER_TO_ALT: _POS | _P7 | _HERE
     b"\x50\x00\x00"  # 80 NAV_ROI
     b"\x51\x00\x00"  # 81 NAV_PATHPLANNING
