@@ -131,3 +131,28 @@ def test_targets_at_infinity_are_outside_the_allowed_area(tmp_path):
     v.poll(3)
     assert geo.area_local and geo.allows_local(1.0, 2.0, -3.0)
     assert not geo.allows_local(inf, 2.0) and not geo.allows_local(1.0, 2.0, -inf) and not geo.allows_local(1e30, 0.0)
+
+
+def test_offboard_setpoints_at_infinity_are_no_demand(tmp_path):
+    # Found by the fuzzer (the MicroPython engine): a SET_POSITION_TARGET_LOCAL_NED with an
+    # infinite north offset, flown to in GUIDED, made the simulator's latitude NaN, and
+    # every tick after raised ValueError publishing it (a contained application fault,
+    # over and over). Setpoints off the globe, infinite or NaN are no demand: it holds.
+    inf, nan = float("inf"), float("nan")
+    v = FuzzVehicle(tmp_path / "st", whole=True)
+    pilot = v.bench.app.pilot.inputs
+    position_only = 0xDF8  # type_mask: velocity, acceleration, yaw and yaw rate ignored
+
+    def demand(x, y, z, frame=1):
+        v.send("set_position_target_local_ned", 0, 1, 1, frame, position_only, x, y, z, 0, 0, 0, 0, 0, 0, 0, 0)
+        v.poll(2)
+        return pilot.demand("OFFBOARD", 0.02)
+
+    assert demand(10.0, 5.0, -20.0)[0] == "pos"
+    for x, y, z in ((inf, 0.0, -10.0), (0.0, -inf, -10.0), (0.0, 0.0, inf), (1e30, 0.0, -10.0),
+                    (nan, 0.0, -10.0), (0.0, 1e38, -10.0)):
+        assert demand(x, y, z) is None, (x, y, z)
+    v.send("set_position_target_global_int", 0, 1, 1, 6, position_only, 2000000000, 85455940, 20.0,
+           0, 0, 0, 0, 0, 0, 0, 0)  # 200 degrees of latitude
+    v.poll(2)
+    assert pilot.demand("OFFBOARD", 0.02) is None

@@ -23,6 +23,7 @@ _BODY_OFFSET_NED = 9
 _BODY_FRD = 12
 _LOCAL_FRD = 20
 _GLOBAL_RELATIVE = (3, 6, 10, 11)  # relative to home (terrain frames: as relative)
+_FAR = 1e7  # m, m/s, rad, rad/s: a demand beyond it (or NaN, or infinite) is no demand
 
 
 class PilotInputs:
@@ -95,8 +96,8 @@ class PilotInputs:
         if best is None:
             return None
         if best is self.inputs.attitude:
-            return self._attitude(best)
-        return self._target(best, best is self.inputs.position_global)
+            return _sane(self._attitude(best))
+        return _sane(self._target(best, best is self.inputs.position_global))
 
     def _target(self, r, is_global):
         frame = r.frame()
@@ -226,6 +227,19 @@ def _any_override(rc):
 def _rotate(fwd, right, heading):
     c, s = math.cos(heading), math.sin(heading)
     return fwd * c - right * s, fwd * s + right * c
+
+
+def _sane(demand):
+    """The demand, if its numbers are finite and not absurd and a point is on the globe;
+    else None (hold): an infinity flown into made the model's position NaN."""
+    if demand is None:
+        return None
+    for v in demand[1:]:
+        if v is not None and not -_FAR < v < _FAR:
+            return None
+    if demand[0] == "pos" and not (-90.0 <= demand[1] <= 90.0 and -180.0 <= demand[2] <= 180.0):
+        return None
+    return demand
 
 
 def _offset(lat, lon, alt, n, e, d):
