@@ -51,7 +51,8 @@ mcu-firmware: setup mcu-tools
 mcu-test: setup mcu-tools
 	$(PY) -m pytest -q tests/test_mcu.py tests/test_mcu_vehicle.py tests/test_flash_mcu.py
 
-# The fuzzer (tests/fuzz/engine.py) for SECONDS; a one-minute run is part of `make test`.
+# The fuzzer for SECONDS: the unix port's vehicles (both dialects) over UDP, growing the
+# corpus in tests/fuzz/corpus/ (tests/fuzz/engine.py); a one-minute run is part of `make test`.
 SECONDS ?= 600
 fuzz: setup
 	$(PY) tests/fuzz/engine.py --seconds $(SECONDS)

@@ -1,12 +1,16 @@
-"""The fuzzer (tests/fuzz) for FUZZ_SECONDS (default 60): the parser and every handled
-message, with real exchanges in between and the invariants checked after every batch.
-`make fuzz SECONDS=N` runs it longer. Also: the seed corpus is valid, and the checks
-catch what they are there to catch."""
+"""The fuzzer (tests/fuzz) for FUZZ_SECONDS (default 60): the unix port's vehicles (both
+dialects, the make-run board with signing and its simulator) fuzzed over UDP, with real
+exchanges in between and the invariants checked every couple of seconds; the in-process
+engine on CPython for a short while too. `make fuzz SECONDS=N` runs it longer. Also: the
+seed frames are valid, the checks catch what they are there to catch, and the faults
+the fuzz found stay fixed."""
 import json
 import os
 import random
+import struct
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -62,19 +66,78 @@ def test_checks_see_a_plan_that_is_not_the_stored_one(tmp_path):
         invariants.check(v, invariants.snapshot(v.storage))
 
 
-def test_fuzz(tmp_path):
+def _run(tmp_path, seconds, *args):
     report = tmp_path / "report.json"
-    proc = subprocess.run([PYTHON, os.path.join(ROOT, "tests", "fuzz", "engine.py"), "--seconds",
-                           str(FUZZ_SECONDS), "--report", str(report)],
-                          cwd=str(tmp_path), capture_output=True, text=True, timeout=FUZZ_SECONDS + 300)
-    tail = (proc.stdout[-3000:] + "\n" + proc.stderr[-6000:])
+    proc = subprocess.run([PYTHON, os.path.join(ROOT, "tests", "fuzz", "engine.py"), "--seconds", str(seconds),
+                           "--report", str(report)] + list(args),
+                          cwd=str(tmp_path), capture_output=True, text=True, timeout=seconds + 300)
+    tail = (proc.stdout[-6000:] + "\n" + proc.stderr[-6000:])
     assert proc.returncode == 0, tail
     r = json.loads(report.read_text())
     print(r)
-    assert r["frames"] >= 50 * FUZZ_SECONDS, r
+    return r
+
+
+def test_fuzz(tmp_path):
+    # The MicroPython vehicles; the saved corpus is read, not grown (make fuzz grows it).
+    r = _run(tmp_path, FUZZ_SECONDS, "--no-grow")
+    assert r["engine"] == "micropython"
+    assert r["frames"] >= 1000 * FUZZ_SECONDS, r  # (5,000/s and more alone: make bench)
+    assert min(r["frames_by_dialect"].get(d, 0) for d in ("common", "seed2012")) > 0, r
     assert r["exchanges"] >= max(1, FUZZ_SECONDS // 10), r
     assert r["foreign_batches"] >= 1, r
     assert r["signed_frames"] >= 1, r
+    assert r["faults"] == {}, r  # each one the fuzz found was a bug, fixed (tests below)
+
+
+def test_fuzz_in_process(tmp_path):
+    r = _run(tmp_path, 10, "--engine", "mutate")
+    assert r["frames"] >= 500 and r["exchanges"] >= 1, r
+
+
+def test_checks_see_a_parameter_in_force_that_is_not_stored(tmp_path):
+    import unix
+
+    v = FuzzVehicle(tmp_path / "st", whole=True)
+    v.param_exchange()
+    v.quiesce(3000)  # saved
+    p = v.params
+    params = {i: (p.name(i).encode(), bytes(p._values[4 * i:4 * i + 4]), p.type(i)) for i in range(p.count)}
+    plans = [(s.count, s.plan_id) for s in v.missions.stores]
+    held = invariants.stored(v.storage, unix)
+    invariants.in_force(unix, held, params, plans)
+    i = p.index("SIM_SPEED")
+    params[i] = (params[i][0], struct.pack("<f", 29.5), params[i][2])
+    with pytest.raises(invariants.Broken, match="SIM_SPEED"):
+        invariants.in_force(unix, held, params, plans)
+    plans[0] = (plans[0][0] + 1, plans[0][1])
+    with pytest.raises(invariants.Broken, match="mission plan in force"):
+        invariants.in_force(unix, dict(held, params=None), params, plans)
+
+
+def test_checks_see_a_fault_never_reported():
+    from fuzz import live
+
+    class Vehicle:
+        starts = 1
+        faults = []
+
+    class T:
+        vehicle = Vehicle()
+        fault_state = [1, 0, 0.0, []]
+
+    t = T()
+    fz = live.Live.__new__(live.Live)
+    counts = {"errors_count2": 0, "errors_count3": 0, "errors_count4": 0}
+    fz.fault_check(t, counts)
+    fz.fault_check(t, dict(counts, errors_count2=3))  # counted: a report is owed
+    t.vehicle.faults.append((time.time(), "Fault: msg 5: KeyError (3)"))
+    fz.fault_check(t, dict(counts, errors_count2=3))  # told
+    assert t.fault_state[3] == []
+    fz.fault_check(t, dict(counts, errors_count2=4, errors_count3=1))
+    t.fault_state[3][0] = (t.fault_state[3][0][0], time.time() - 1)  # and never told since
+    with pytest.raises(invariants.Broken, match="never reported"):
+        fz.fault_check(t, dict(counts, errors_count2=4, errors_count3=1))
 
 
 def test_sharp_turn_in_auto_keeps_the_vehicle_running(tmp_path):

@@ -1,21 +1,16 @@
-"""The fuzz loop: inputs become batches of frames for the in-process vehicle; after every
-batch the invariants are checked; every couple of seconds a ground station runs real
-parameter, command and mission exchanges that must still succeed.
+"""The fuzzer's command. `make fuzz` runs the MicroPython engine (live.py: the unix port's
+vehicles over UDP); this module is also the second engine, in-process on CPython, where
+an input's first byte picks how it is read: 0 raw bytes into the parser, 1 structured
+frames (valid CRC, random fields, generated from the input), 2 the two spliced, 3 frames
+aimed at another vehicle or (signing on) not signed with the key in force, which must
+change nothing. After every batch the invariants are checked; every couple of seconds a
+ground station's exchanges must succeed. Inputs come from libFuzzer (atheris), guided by
+coverage of the stack, or from a seeded mutator. Every engine writes a report (JSON:
+frames, batches, exchanges, reboots, seconds, fuzz_frames_per_s); a failure ends the
+run, status 1.
 
     .venv/bin/python tests/fuzz/engine.py --seconds 60 [--seed 1] [--report FILE]
-        [--engine atheris|mutate] [--storage DIR]
-
-An input's first byte picks how it is read:
-    0  raw bytes straight into the parser (the seed corpus: valid frames of every message)
-    1  structured frames: valid CRC, random field values, from a generator seeded by the input
-    2  structured frames with raw input bytes spliced between them
-    3  structured frames all aimed at another vehicle, or (signing on) aimed at this one
-       but unsigned or signed with a wrong key: nothing stored or in force may change
-With atheris installed the inputs come from libFuzzer, guided by coverage of the stack;
-otherwise from a seeded mutator over the same corpus. Either way a report (JSON:
-frames, batches, exchanges, reboots, seconds, fuzz_frames_per_s) is written at the end;
-a broken invariant or an exception out of the vehicle stops the run, exit status 1,
-with the input saved next to the report.
+        [--engine micropython|atheris|mutate] [--storage DIR] [--no-grow]
 """
 import argparse
 import json
@@ -205,27 +200,6 @@ def seeds(rng):
     return out
 
 
-def mutate(rng, data, pool):
-    data = bytearray(data)
-    for _ in range(rng.randrange(1, 5)):
-        what = rng.randrange(5)
-        if what == 0 and data:
-            data[rng.randrange(len(data))] ^= 1 << rng.randrange(8)
-        elif what == 1 and data:
-            data[rng.randrange(len(data))] = rng.randrange(256)
-        elif what == 2:
-            k = rng.randrange(len(data) + 1)
-            data[k:k] = rng.randbytes(rng.randrange(1, 8))
-        elif what == 3 and len(data) > 2:
-            k = rng.randrange(1, len(data))
-            del data[k:k + rng.randrange(1, 8)]
-        else:
-            other = rng.choice(pool)
-            k = rng.randrange(len(data) + 1)
-            data[k:] = other[rng.randrange(len(other)):]
-    return bytes(data[:4096])
-
-
 ENGINE = "mutate"
 
 
@@ -236,16 +210,14 @@ def main(argv):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--report")
     ap.add_argument("--storage")
-    ap.add_argument("--engine", choices=("atheris", "mutate"))
+    ap.add_argument("--engine", choices=("micropython", "atheris", "mutate"), default="micropython")
+    ap.add_argument("--no-grow", action="store_true", help="leave the saved corpus as it is")
     args = ap.parse_args(argv)
     engine = args.engine
-    if engine is None:
-        try:
-            import atheris  # noqa: F401
+    if engine == "micropython":
+        from fuzz import live
 
-            engine = "atheris"
-        except ImportError:
-            engine = "mutate"
+        sys.exit(live.main(args.seconds, args.seed, args.report, grow=not args.no_grow))
     ENGINE = engine
     work = tempfile.mkdtemp(prefix="mavfuzz-")
     storage = args.storage or os.path.join(work, "storage")
@@ -260,6 +232,7 @@ def main(argv):
     fz.work = work if not args.storage else None
     rng = random.Random(args.seed)
     pool = seeds(rng)
+    from fuzz.corpus import mutate
 
     def test_one(data):
         try:

@@ -155,6 +155,8 @@ class Structured:
 
     def frame(self, rng, seq, foreign=False, key=None, stamp=0):
         msgid = rng.choice(self.ids)
+        if msgid == _MSG_SETUP_SIGNING and rng.random() < 0.8:
+            msgid = rng.choice(self.ids)  # rarer: each new key makes the frames after it wrongly signed
         version = 1 if msgid < 256 and rng.random() < 0.2 and key is None else 2
         sysid = rng.choice((255, 255, 254, 1, 2, rng.randrange(256)))
         compid = rng.choice((190, 0, 1, rng.randrange(256)))
@@ -165,6 +167,7 @@ class Structured:
 
 
 _CMD_REBOOT_SHUTDOWN = 246
+_MSG_SETUP_SIGNING = 256
 
 
 def corpus(rng, sysid=1, compid=1, table=LAYOUTS):

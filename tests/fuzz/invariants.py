@@ -10,8 +10,12 @@
 `Snapshot` is the storage directory's bytes; `unchanged(before, after)` names the files
 that differ. A batch that holds no legitimate write (every frame aimed at another
 vehicle) must leave storage byte for byte as it was, and the values in force too.
+
+`stored(...)` and `in_force(...)` hold the same for a vehicle in another process (the
+MicroPython engine): its storage read here, what is in force asked over MAVLink.
 """
 import os
+import struct
 
 from mavstack.services.params import table as param_table
 from mavstack.services.missions.store import MissionStore, RECORD_SIZE
@@ -146,3 +150,91 @@ def _signing(v, stored):
         raise Broken("stored signing key corrupt")
     if data[:32] != bytes(sg.key):
         raise Broken("stored signing key %s, in force %s" % (data[:32].hex(), bytes(sg.key).hex()))
+
+
+# --- a vehicle in another process: its storage read here ---------------------------------
+PLANS = (("mission", "MISSION_CAPACITY"), ("fence", "FENCE_CAPACITY"), ("rally", "RALLY_CAPACITY"))
+
+
+def stored(root, board, plan_types=3):
+    """What the vehicle's storage holds, checked for sanity -> {"params": the values (4
+    bytes each, by index) or None, "plans": [(count, opaque_id)], "key": the signing key
+    or None}."""
+    out = {"params": None, "plans": [], "key": None}
+    table = _table(board)
+    data = read_file(os.path.join(root, "params"))
+    if data is not None:
+        bad = table.unpack(data, len(data))
+        if bad != 0:
+            raise Broken("stored parameters do not decode (%d)" % bad)
+        for i in range(table.count):
+            if not table.valid(i, table._loaded, 4 * i):
+                raise Broken("stored parameter %s is outside its type or range" % table.name(i))
+        out["params"] = bytes(table._loaded)
+    storage = Storage(root)
+    rec = bytearray(RECORD_SIZE)
+    for mission_type in range(plan_types):
+        name, capacity = PLANS[mission_type]
+        s = MissionStore(storage, name, mission_type, getattr(board, capacity))
+        try:
+            if s.corrupt or not 0 <= s.count <= s.capacity:
+                raise Broken("stored %s plan: corrupt %s, %d items" % (name, s.corrupt, s.count))
+            for seq in range(s.count):
+                if not s.read(seq, rec):
+                    raise Broken("stored %s plan: item %d unreadable" % (name, seq))
+            out["plans"].append((s.count, s.plan_id))
+        finally:
+            s.close()
+    data = read_file(os.path.join(root, "signing_key"))
+    if data is not None:
+        if len(data) != 42 or checksum(data[:40]) != data[40] | data[41] << 8:
+            raise Broken("stored signing key corrupt")
+        out["key"] = data[:32]
+    return out
+
+
+def read_file(path):
+    """A file's bytes, None when there is none."""
+    try:
+        with open(path, "rb") as f:
+            return f.read()
+    except FileNotFoundError:
+        return None
+
+
+def in_force(board, held, params, plans):
+    """What the vehicle says is in force (params: {index: (name, value bytes, type)} from
+    PARAM_VALUEs; plans: [(count, opaque_id or None)] from MISSION_COUNTs) against
+    `held`, what stored() read after the vehicle saved."""
+    table = _table(board)
+    values = held["params"]
+    for i in range(table.count):
+        name = table.name(i)
+        got = params.get(i)
+        if got is None or got[0].decode(errors="replace") != name:
+            raise Broken("parameter %d: in force %r, the table says %s" % (i, got, name))
+        if name == getattr(board, "PARAM_SYSID", None) or values is None:
+            continue
+        want = values[4 * i:4 * i + 4]
+        if got[1] != want and got[1] != _c_cast(table, i, want):
+            raise Broken("parameter %s: in force %s, stored %s" % (name, got[1].hex(), want.hex()))
+    for mission_type, (have, want) in enumerate(zip(plans, held["plans"])):
+        if have is None or have[0] != want[0] or (have[1] is not None and have[1] != want[1]):
+            raise Broken("%s plan in force (count, id) %s, stored %s" % (PLANS[mission_type][0], have, want))
+
+
+def _c_cast(table, i, raw):
+    """An integer parameter's value as a float's bits (the C-cast encoding)."""
+    if table.type(i) == 9:  # MAV_PARAM_TYPE_REAL32: no other encoding
+        return raw
+    code = {1: "<B", 2: "<b", 3: "<H", 4: "<h", 5: "<I", 6: "<i"}[table.type(i)]
+    return struct.pack("<f", struct.unpack(code, raw[:struct.calcsize(code)])[0])
+
+
+_TABLES = {}
+
+
+def _table(board):
+    if id(board.PARAMS) not in _TABLES:
+        _TABLES[id(board.PARAMS)] = param_table.ParamTable(board.PARAMS)
+    return _TABLES[id(board.PARAMS)]
