@@ -17,7 +17,7 @@ import pytest
 from conftest import PYTHON, ROOT
 
 sys.path.insert(0, os.path.join(ROOT, "tests"))
-from fuzz import frames, invariants  # noqa: E402
+from fuzz import frames, invariants, wire  # noqa: E402
 from fuzz.rig import FuzzVehicle  # noqa: E402
 
 FUZZ_SECONDS = float(os.environ.get("FUZZ_SECONDS", "60"))
@@ -219,3 +219,32 @@ def test_offboard_setpoints_at_infinity_are_no_demand(tmp_path):
            0, 0, 0, 0, 0, 0, 0, 0)  # 200 degrees of latitude
     v.poll(2)
     assert pilot.demand("OFFBOARD", 0.02) is None
+
+
+BOARD_HEAP_LOCKED = """
+import micropython
+from harness import Bench
+import qemu_m3
+b = Bench(services=qemu_m3.SERVICES, board=qemu_m3, storage="ram", ram_storage_kb=64)
+frames = [bytes.fromhex(h) for h in %r]
+b.run(20, 10)
+micropython.heap_lock()
+for i in range(len(frames)):
+    b.send_raw(frames[i], len(frames[i]))
+    b.run(2, 5)
+micropython.heap_unlock()
+print("faults", b.ep.faults.counts)
+"""
+
+
+def test_board_paths_found_allocating_under_heap_lock():
+    # Found by fuzzing the emulated Cortex-M3 board (test_mcu_fuzz.py), heap locked: a
+    # MISSION_SET_CURRENT the vehicle cannot follow said so in a STATUSTEXT given as str,
+    # which the text queue encodes (allocates): MemoryError, every time. Checked here on
+    # the unix port with the board's own profile and services, heap locked.
+    from conftest import run_mpy
+
+    gcs = wire.Speaker((255, 190), frames.LAYOUTS, wire.Signing())
+    sent = [gcs.frame("MISSION_SET_CURRENT", seq=4, target_system=1, target_component=1).hex()]
+    r = run_mpy(BOARD_HEAP_LOCKED % (sent,), path=[os.path.join(ROOT, "tests", "mpy"), os.path.join(ROOT, "boards")])
+    assert r.returncode == 0 and "faults [0, 0, 0, 0, 0, 0]" in r.stdout, r.stdout + r.stderr

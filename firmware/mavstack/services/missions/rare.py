@@ -138,5 +138,5 @@ def _set_current(m, link, p):
     runner = m.runner
     if runner is not None and m.ep.allows(link) and runner.set_current(u16(p, 0)):
         return  # MISSION_CURRENT follows from the change
-    m.ep.statustext(4, "Mission: cannot set current item")  # MAV_SEVERITY_WARNING
+    m.ep.statustext(4, b"Mission: cannot set current item")  # MAV_SEVERITY_WARNING (bytes: no heap)
     m.send_current(link)

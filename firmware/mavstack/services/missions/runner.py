@@ -306,7 +306,7 @@ class MissionRunner:
                 seq = target
             else:
                 seq += 1
-        self.missions.ep.statustext(3, "Mission: DO_JUMP loop without items")
+        self.missions.ep.statustext(3, b"Mission: DO_JUMP loop without items")
         self._complete()
 
     def _complete(self):
