@@ -80,15 +80,12 @@ def build(board, opts, dog=None):
         ep.storage = Storage(opts.get("storage") or board.STORAGE)
     else:
         ep.storage = board.storage()  # a board without a filesystem (storage_ram.py)
-    services = board.SERVICES
-    safe = False
+    guard = None
     if dog is not None:
         # A board its watchdog restarts counts its starts, and may start in safe mode.
         from mavstack.watchdog import Guard  # only then (RAM)
 
-        guard = ep.add(Guard(services))
-        services = guard.services
-        safe = guard.safe
+        guard = ep.add(Guard(board.SERVICES))
     specs = opts.get("links") or []
     # --set udp_bytes_per_s=5760 makes UDP links pace themselves like a 57600 baud radio.
     udp_rate = ep.setting("UDP_BYTES_PER_S", 200000)
@@ -100,7 +97,8 @@ def build(board, opts, dog=None):
             ep.add_link(transport)
     if dog is not None:
         dog.feed()
-    why = compose(ep, services)  # each after the services it needs
+    # Each after the services it needs (in safe mode, those the guard leaves).
+    why = compose(ep, board.SERVICES if guard is None else guard.services)
     if why:  # the profile's SERVICES are wrong: say so in one line, and stop
         print("mavstack: board %s: %s" % (board.NAME, why))
         sys.exit(1)
@@ -109,7 +107,7 @@ def build(board, opts, dog=None):
     # --set application=0: the stack alone (the unix simulator allocates, so a soak under
     # heap_lock runs without it). None in safe mode.
     app = None
-    if hasattr(board, "application") and ep.setting("APPLICATION", True) and not safe:
+    if hasattr(board, "application") and ep.setting("APPLICATION", True) and not (guard and guard.safe):
         app = board.application(ep)
     _check_ram(ep, board)
     return ep, app
@@ -214,7 +212,7 @@ def main(argv):
         if dog is not None and hasattr(dog, "stop"):  # back to the REPL, or out
             dog.stop()
         elif dog is not None:
-            print("mavstack: the watchdog cannot be stopped: the board resets when it runs out")
+            print("mavstack: the watchdog runs on (machine.WDT cannot be stopped)")
         return
 
 
