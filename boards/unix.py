@@ -29,8 +29,8 @@ FLIGHT_MODES = (
     (2, "ALT_HOLD", 64 | 16, 2, 0, 4),  # manual, altitude held (PX4: Altitude; standard ALTITUDE_HOLD)
     (16, "POSITION", 64 | 16, 3, 0, 1),  # manual, position held (ArduCopter POSHOLD; PX4 Position; POSITION_HOLD)
     (3, "AUTO", 16 | 4, 4, 4, 6),  # flies the mission (PX4 Mission; standard MISSION)
+    (5, "LOITER", 16 | 4, 4, 3, 0),  # holds where it is (PX4 Hold: PX4's AUTO.LOITER asks for it)
     (4, "GUIDED", 16 | 8, 4, 3, 0),  # goes to a commanded point and holds (PX4 shows it as Hold)
-    (5, "LOITER", 16 | 4, 4, 3, 0),  # holds where it is (PX4 Hold)
     (6, "RTL", 16 | 4, 4, 5, 5),  # home at the return altitude, lands (standard SAFE_RECOVERY)
     (9, "LAND", 16 | 4, 4, 6, 7),  # lands here, disarms (standard LAND)
     (4, "TAKEOFF", 16 | 8 | 4, 4, 2, 8),  # climbs to the takeoff altitude, then LOITER (standard TAKEOFF)
@@ -40,7 +40,7 @@ MODE_NUMBERING = "auto"  # per link, as its ground station reads modes (modes.py
 # inputs (mavstack/services/inputs/)
 INPUT_TIMEOUT_MS = 1000  # an input that stops this long is lost: on_input_lost (the simulator's failsafe)
 RC_OVERRIDE_TIMEOUT_MS = 3000  # an RC override channel not set again this long goes back to the radio
-RAM_BUDGET = 416 * 1024  # heap the vehicle may hold after start-up (main.py reports it): every service and the simulator (its flight modes, commands and failsafes ~40 KB), 64-bit pointers
+RAM_BUDGET = 424 * 1024  # heap the vehicle may hold after start-up (main.py reports it): every service and the simulator (its flight modes, commands and failsafes ~40 KB), 64-bit pointers
 WATCHDOG_MS = 2000  # under host_tools/watchdog.py: it restarts the vehicle when the loop stops this long
 
 

@@ -13,7 +13,7 @@ from conftest import MICROPYTHON, ROOT
 sys.path.insert(0, os.path.join(ROOT, "boards"))
 
 
-@pytest.mark.parametrize("board", ["unix", "pico", "esp32", "pyboard", "qemu_m3", "qemu_m0"])
+@pytest.mark.parametrize("board", ["unix", "unix_signed", "pico", "esp32", "pyboard", "qemu_m3", "qemu_m0"])
 def test_profile_builds_a_vehicle_and_reports_its_heap(vehicle, board):
     # The emulated boards lock the heap once up; the unix port's UDP links allocate for
     # each new peer, so here they run unlocked (tests/test_mcu_vehicle.py runs them locked).

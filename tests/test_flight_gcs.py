@@ -1,6 +1,9 @@
 """Real ground stations fly the simulated vehicle over UDP: MAVSDK-Python's Action,
-Telemetry and Mission plugins, and MAVProxy as a user types it. A pymavlink ground
-station on a second link checks what the vehicle does (mode, position, arming)."""
+Telemetry and Mission plugins, and MAVProxy as a user types it, each by its autopilot's
+conventions (MAVProxy ArduPilot's: ArduCopter's mode numbers, GUIDED after a takeoff, not
+armable in RTL after landing, a plan's item 0 home; tests/test_gcs_walls.py has MAVSDK's,
+PX4's). A pymavlink ground station on a second link checks what the vehicle does (mode,
+position, arming)."""
 import math
 import time
 
@@ -33,8 +36,8 @@ def metres(lat, lon, lat0, lon0):
 
 def test_mavsdk_takeoff_goto_hold_return(vehicle):
     """action.set_takeoff_altitude (MAVSDK keeps it and sends it in NAV_TAKEOFF's param7), arm, takeoff,
-    telemetry.in_air, goto_location (DO_REPOSITION, altitude AMSL), hold (mode PX4
-    AUTO.LOITER), return_to_launch (NAV_RETURN_TO_LAUNCH) down to ON_GROUND, disarmed."""
+    telemetry.in_air, goto_location (DO_REPOSITION, altitude AMSL), hold (DO_SET_MODE PX4
+    AUTO.LOITER), return_to_launch (DO_SET_MODE PX4 AUTO.RTL) down to ON_GROUND, disarmed."""
     from mavsdk.plugins.action import Action
     from mavsdk.plugins.telemetry import LandedState, Telemetry
 
@@ -120,9 +123,10 @@ def test_mavsdk_start_mission_flies_it_to_the_end(vehicle):
 
 
 def test_mavproxy_guided_takeoff_goto_rtl(vehicle, tmp_path):
-    """MAVProxy: `mode GUIDED`, `arm throttle`, `takeoff 10`, `guided LAT LON ALT` (a
-    MISSION_ITEM_INT with current 2, ArduPilot's guided waypoint), `position X Y Z`,
-    `rtl` (mode RTL); `setyaw` is ArduPilot's alone."""
+    """MAVProxy: `mode GUIDED`, `arm throttle`, `takeoff 10` (then GUIDED, as ArduCopter),
+    `guided LAT LON ALT` (a MISSION_ITEM_INT with current 2, ArduPilot's guided waypoint),
+    `position X Y Z`, `rtl` (mode RTL); `setyaw` is ArduPilot's alone. Landed by RTL the
+    vehicle stays in RTL, where it will not arm (ArduPilot's rule), until another mode."""
     v, port, check = gcs_tools.two_links(vehicle, *FAST)
     mp = MavProxy(port, tmp_path, "mode,cmdlong,arm")
     try:
@@ -132,7 +136,9 @@ def test_mavproxy_guided_takeoff_goto_rtl(vehicle, tmp_path):
         mp.say("arm throttle")
         assert gcs_tools.vehicle_heartbeat(check, lambda h: h.base_mode & ARMED) is not None
         mp.say("takeoff 10")
-        assert gcs_tools.listen(check, "GLOBAL_POSITION_INT", 20, lambda p: abs(p.relative_alt - 10000) < 500) is not None
+        assert gcs_tools.listen(check, "GLOBAL_POSITION_INT", 20, lambda p: abs(p.relative_alt - 10000) < 50) is not None
+        time.sleep(1.0)
+        assert gcs_tools.vehicle_heartbeat(check).custom_mode == 4  # done: GUIDED still
         lat, lon = LAT0 / 1e7 + 0.0005, LON0 / 1e7 + 0.0005
         mp.say("guided %.7f %.7f 20" % (lat, lon))
         mp.expect(r"Guided")
@@ -155,6 +161,53 @@ def test_mavproxy_guided_takeoff_goto_rtl(vehicle, tmp_path):
         assert gcs_tools.vehicle_heartbeat(check, lambda h: not h.base_mode & ARMED, timeout=40) is not None
         pos = gcs_tools.listen(check, "GLOBAL_POSITION_INT", 5)
         assert metres(pos.lat / 1e7, pos.lon / 1e7, LAT0 / 1e7, LON0 / 1e7) < 2.5 and abs(pos.relative_alt) < 200
+        assert gcs_tools.vehicle_heartbeat(check).custom_mode == 6  # still RTL
+        mp.say("arm throttle")
+        assert gcs_tools.statustext(check, "Arm: mode RTL: not armable") is not None
+        mp.say("mode LOITER")
+        mp.say("arm throttle")
+        assert gcs_tools.vehicle_heartbeat(check, lambda h: h.base_mode & ARMED) is not None
+    finally:
+        mp.close()
+    v.check_alive()
+
+
+# QGC WPL 110 as MAVProxy saves one: index current frame command p1 p2 p3 p4 x y z autocontinue;
+# row 0 is home (ArduPilot's convention), at ground level.
+WPL = """QGC WPL 110
+0\t1\t0\t16\t0\t0\t0\t0\t47.3977420\t8.5455940\t488.000000\t1
+1\t0\t3\t22\t0\t0\t0\t0\t0.0000000\t0.0000000\t12.000000\t1
+2\t0\t3\t16\t0\t0\t0\t0\t47.3980420\t8.5455940\t12.000000\t1
+3\t0\t3\t16\t0\t0\t0\t0\t47.3980420\t8.5459940\t12.000000\t1
+"""
+
+
+def test_mavproxy_mission_start_0_flies_past_the_home_row(vehicle, tmp_path):
+    """MAVProxy's plans keep home in item 0, as ArduPilot does: `long MISSION_START 0`
+    flies from item 1 (the takeoff), never to the home row at ground level; `mode AUTO`
+    after the end flies it again from item 1."""
+    v, port, check = gcs_tools.two_links(vehicle, *FAST)
+    (tmp_path / "mission.txt").write_text(WPL)
+    mp = MavProxy(port, tmp_path, "wp,cmdlong,arm,mode")
+    try:
+        mp.expect(r"online system 1|Detected vehicle 1:1")
+        mp.say("wp load mission.txt")
+        mp.expect(r"Sent all 4 waypoints?")
+        mp.say("arm throttle")
+        assert gcs_tools.vehicle_heartbeat(check, lambda h: h.base_mode & ARMED) is not None
+        for start in ("long MISSION_START 0", "mode AUTO"):
+            mp.say(start)
+            reached, lowest = [], None
+            deadline = time.time() + 30
+            while time.time() < deadline and 3 not in reached:
+                r = gcs_tools.listen(check, ["MISSION_ITEM_REACHED", "GLOBAL_POSITION_INT"], 5)
+                if r is not None and r.get_type() == "MISSION_ITEM_REACHED":
+                    reached.append(r.seq)
+                elif r is not None and reached and (lowest is None or r.relative_alt < lowest):
+                    lowest = r.relative_alt  # once up: never back down to the home row
+            assert reached == [1, 2, 3] and lowest > 11000, (start, reached, lowest)
+        mp.say("rtl")
+        assert gcs_tools.vehicle_heartbeat(check, lambda h: not h.base_mode & ARMED, timeout=40) is not None
     finally:
         mp.close()
     v.check_alive()
