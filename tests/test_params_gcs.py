@@ -6,7 +6,7 @@ import sys
 
 import pytest
 
-from conftest import ROOT, recv
+from conftest import ROOT, free_udp_port, recv
 from gcs_tools import MavProxy, two_links, mavsdk_system
 
 sys.path.insert(0, os.path.join(ROOT, "boards"))
@@ -118,3 +118,37 @@ def test_mavsdk_integer_parameters_and_refusals(vehicle):
     check.mav.param_request_read_send(1, 1, b"BATT_CAPACITY", -1)
     msg = recv(check, "PARAM_VALUE", 5, lambda m: m.param_id == "BATT_CAPACITY")
     assert msg.get_msgbuf()[10:14] == (6100).to_bytes(4, "little")
+
+
+@pytest.mark.parametrize("identity", [None, (255, 1)], ids=["245/190", "255/1"])
+def test_a_float_for_an_integer_changes_no_encoding(vehicle, tmp_path, identity):
+    """MAVSDK's set_param_float on an integer parameter is refused as PX4 refuses it
+    (TYPE_MISMATCH, nothing stored), whatever MAVSDK's identity; its link still reads and
+    sets integers bytewise (MAV_SYS_ID reads 1, not 1065353216). MAVProxy on the other link
+    of the same vehicle sets the same parameter as a float, taken, and reads it C-cast."""
+    from mavsdk.plugins.param import Param, ParamError, ParamResult
+
+    ports = free_udp_port(), free_udp_port()
+    vehicle(links=["udpin:127.0.0.1:%d" % p for p in ports], args=["--set", "param_autosave_ms=0"])
+    with mavsdk_system(ports[0], identity) as system:
+        param = Param(system)
+        assert param.get_param_int("BATT_CAPACITY") == 5000
+        with pytest.raises(ParamError) as e:
+            param.set_param_float("BATT_CAPACITY", 4100.0)
+        assert e.value.result == ParamResult.TYPE_MISMATCH
+        assert param.get_param_int("BATT_CAPACITY") == 5000  # nothing stored
+        assert param.get_param_int("MAV_SYS_ID") == 1  # still bytewise
+        param.set_param_int("BATT_CAPACITY", 4200)
+        assert param.get_param_int("BATT_CAPACITY") == 4200
+        mp = MavProxy(ports[1], tmp_path, "param")
+        try:
+            mp.expect(r"online system 1|Detected vehicle 1:1")
+            mp.expect(r"Received %d parameters" % N)  # (its own list, on connecting)
+            assert _shown(mp, "BATT_CAPACITY", 4200) == 4200  # C-cast on its link
+            mp.say("param set BATT_CAPACITY 4300")  # REAL32, the number: taken
+            assert _shown(mp, "BATT_CAPACITY", 4300) == 4300
+            assert _shown(mp, "MAV_SYS_ID", 1) == 1
+        finally:
+            mp.close()
+        assert param.get_param_int("BATT_CAPACITY") == 4300
+        assert param.get_param_int("MAV_SYS_ID") == 1

@@ -103,6 +103,11 @@ class Rig:
         commands_service.create(self.ep)
         self.mav = [mav.MAVLink(None, 255, 190) for _ in range(links)]
         self.now = 1000
+        for i in range(links):  # a station on every link (a link nobody spoke on is told no changes)
+            self.send(mav.MAVLink_heartbeat_message(6, 8, 0, 0, 0, 3), i)
+        self.poll()
+        for i in range(links):
+            self.received(i)
 
     def send(self, msg, link=0):
         self.transports[link].inbox += msg.pack(self.mav[link])

@@ -186,10 +186,12 @@ class Params(ParamStore, LinkEncodings, ParamTable):
             self._answers[link.index] += 1
 
     def _announce(self, i, skip=None):
-        """Owe parameter i to every link but skip, paced like a list."""
+        """Owe parameter i to every link but skip that has heard anyone, paced like a list.
+        (A station that comes later lists them, in the encoding it shows by then: one
+        told first, before it could show it, might keep a value misread.)"""
         links = self.ep.links
         for li in range(len(links)):
-            if links[li] is not skip:
+            if links[li] is not skip and links[li].rx.frames:
                 self._owe(links[li], i)
 
     def _owe(self, link, i):
