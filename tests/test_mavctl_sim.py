@@ -36,7 +36,7 @@ def test_sim_session_over_its_pty(tmp_path):
         assert sum(line.startswith("rally ") for line in table) == 2
         check_png(tmp_path / "v.png", 640, 480)
         assert "MAV_RESULT_ACCEPTED" in ok(mavctl(link, "arm"))
-        assert "MAV_RESULT_ACCEPTED" in ok(mavctl(link, "mode", "1", "3"))  # AUTO: fly the mission
+        assert "MAV_RESULT_ACCEPTED" in ok(mavctl(link, "mode", "5"))  # AUTO by its flag: fly the mission
         tlog = tmp_path / "flight.tlog"
         out = ok(mavctl(link, "watch", "--view", "--seconds", "4", "--tlog", tlog))
         view = out.split("mavctl watch: ")[-1]
