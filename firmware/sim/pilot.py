@@ -42,7 +42,6 @@ class FlightPilot(FlightCommands):
         self.land_at = None  # (lat, lon) of a NAV_LAND somewhere else
         self.pending = None  # the command still IN_PROGRESS (takeoff, land)
         self.pending_cmd = 0
-        self._since_progress = 0.0
         self.failsafe = Failsafe(self)
         self.paused_mode = None  # DO_PAUSE_CONTINUE: (mode, hold_at, speed, yaw) to continue with
         self.landed = ON_GROUND
