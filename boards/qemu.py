@@ -51,11 +51,23 @@ HEAP = [0, 0]  # heap in use and free (bytes) when the vehicle was shut down (be
 
 def shutdown():
     """PREFLIGHT_REBOOT_SHUTDOWN 2: main.py returns to the REPL; the heap figures of the
-    vehicle as it ran are kept here, for the REPL to read."""
+    vehicle as it ran are kept here, for the REPL to read: what it holds, collected first
+    (rare events open the locked heap and leave garbage behind)."""
     import gc
+    import micropython
 
+    micropython.heap_lock()
+    depth = micropython.heap_unlock()  # the lock depth (compat.heap_open, without importing)
+    n = depth
+    while n:
+        micropython.heap_unlock()
+        n -= 1
+    gc.collect()
     HEAP[0] = gc.mem_alloc()
     HEAP[1] = gc.mem_free()
+    while depth:
+        micropython.heap_lock()
+        depth -= 1
 
 
 def storage(address, size):
