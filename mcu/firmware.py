@@ -137,12 +137,9 @@ def _build(board, heap_kb, frozen, manifest, quiet, filesystem=False):
         out = out[:-4] + "-" + os.path.basename(os.path.dirname(manifest)) + ".elf"
     src = source_dir()
     _patch_boot(src)
-    tag = "%s-%s" % (board, "frozen" if frozen else "plain") if manifest is None else "%s-%s" % (
-        board, os.path.basename(manifest)[:-3])
     if filesystem:
-        tag = board + "-fs"
         out = elf_path(board, heap_kb)[:-4] + "-fs.elf"
-    bdir = os.path.join(BUILD, "obj-" + tag)
+    bdir = build_dir(board, frozen, manifest, filesystem)
     inputs = (_boot_inputs(board) if filesystem else _manifest_inputs(manifest)) if frozen else []
     if os.path.exists(out) and all(os.path.getmtime(p) <= os.path.getmtime(out) for p in inputs):
         return out
@@ -182,6 +179,14 @@ def _build(board, heap_kb, frozen, manifest, quiet, filesystem=False):
     _check_storage_region(board, os.path.join(bdir, "firmware.elf"), filesystem)
     shutil.copyfile(os.path.join(bdir, "firmware.elf"), out)
     return out
+
+
+def build_dir(board, frozen=True, manifest=None, filesystem=False):
+    """The build directory of a firmware: its objects, firmware.map, and for a frozen
+    one frozen_content.c and .o, what bench/bench_mcu_flash.py measures."""
+    tag = "%s-%s" % (board, "frozen" if frozen else "plain") if manifest is None else "%s-%s" % (
+        board, os.path.basename(manifest)[:-3])
+    return os.path.join(BUILD, "obj-" + (board + "-fs" if filesystem else tag))
 
 
 def _region(board, name):
@@ -306,7 +311,8 @@ def _boot_inputs(board):
 
 def _manifest_inputs(manifest):
     """Files whose change means a rebuild: the stack, the boards, the manifests."""
-    paths = [os.path.join(ROOT, "firmware", "manifest.py"), os.path.abspath(__file__)]
+    paths = [os.path.join(ROOT, "firmware", "manifest.py"), os.path.abspath(__file__),
+             os.path.join(ROOT, "host_tools", "stack_files.py")]  # the manifest's list of modules
     if manifest:
         paths.append(manifest)
     for top in ("firmware", "boards") + ((os.path.dirname(manifest),) if manifest else ()):
