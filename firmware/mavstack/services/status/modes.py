@@ -99,6 +99,8 @@ class Modes:
         or -1 when the two readings come to different modes (refused, and said why)."""
         if number < _PX4_MANUAL or number > _PX4_LAST_MAIN or number == _PX4_AUTO:
             return number
+        if not max(self.px4, default=0):
+            return number  # a table without PX4 encodings: no PX4 reading means anything here
         ardupilot = self.by_number(number)
         px4 = self._by_px4(number << 16)
         if ardupilot == px4:
