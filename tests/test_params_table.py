@@ -411,6 +411,8 @@ def test_set_refused_without_operator_control(tmp_path):
     b = Rig(tmp_path)
 
     class NotYou:
+        sysid = 200  # another ground station is in control (link.py ranks by it)
+
         def allows(self, link):
             return False
 
