@@ -29,7 +29,10 @@ _profile = os.path.join(_boards, options.board + ".py")
 if not os.path.exists(_profile):
     raise ValueError("no board profile " + _profile)
 _settings = stack_files.profile(options.board)
-_services = options.services or _settings.get("SERVICES") or ()
+_services = options.services or _settings.get("SERVICES")
+if _services is None:
+    raise ValueError("boards/%s.py: no SERVICES this manifest can read (a tuple of names): "
+                     "give services=" % options.board)
 if _services == "all":
     _services = stack_files.service_names()
 elif isinstance(_services, str):

@@ -1,7 +1,8 @@
-"""What `mavctl flash` puts on a board: the profile read (boards/NAME.py), the stack and
-the modules the profile imports compiled to .mpy with mpy-cross for the board's CPU
-(the dialect cut down with --messages), main.py and board.py beside them. Every refusal
-is a FlashError: one line and mavctl's exit status. Reference: docs/mavctl.md.
+"""What `mavctl flash` puts on a board: the profile read (boards/NAME.py), the part of the
+stack its SERVICES use (../stack_files.py, as the freezing manifest) and the modules the
+profile imports, compiled to .mpy with mpy-cross for the board's CPU (the dialect cut
+down with --messages), main.py and board.py beside them. Every refusal is a FlashError:
+one line and mavctl's exit status. Reference: docs/mavctl.md.
 """
 import ast
 import os
@@ -14,6 +15,10 @@ from concurrent.futures import ThreadPoolExecutor
 
 from mavctl import HOST_TOOLS, ROOT
 from mavctl.errors import EXIT_USAGE
+
+if HOST_TOOLS not in sys.path:  # stack_files.py lies beside the package: the manifest uses it too
+    sys.path.insert(0, HOST_TOOLS)
+import stack_files  # noqa: E402
 
 FIRMWARE = os.path.join(ROOT, "firmware")
 STACK = os.path.join(FIRMWARE, "mavstack")
@@ -28,7 +33,7 @@ ARCH_BY_INDEX = (None, "x86", "x64", "armv6", "armv6m", "armv7m", "armv7em", "ar
                  "armv7emdp", "xtensa", "xtensawin", "rv32imc", "rv64imc")
 MPY_VERSION = 6
 MPY_SUB_VERSION = 3
-NATIVE_MODULES = ("bytes_viper.py", "sha256_viper.py")  # hold @micropython.viper code
+NATIVE_MODULES = stack_files.NATIVE_MODULES  # hold @micropython.viper code
 _CONST = re.compile(r"^_?([A-Z][A-Z0-9_]*)\s*=\s*const\((\d+)\)", re.M)
 
 
@@ -53,23 +58,13 @@ def tool(name):
 # --- what goes on the board -------------------------------------------------------
 
 def read_profile(board):
-    """(profile path, module-level settings, names the profile's functions import)."""
+    """(profile path, module-level settings (stack_files.profile), names the profile's
+    functions import)."""
     path = os.path.join(BOARDS, board + ".py")
     if not os.path.isfile(path):
         known = sorted(f[:-3] for f in os.listdir(BOARDS) if f.endswith(".py"))
         raise FlashError("no board profile %r (boards/: %s)" % (board, ", ".join(known)))
-    with open(path, encoding="utf-8") as f:
-        tree = ast.parse(f.read(), path)
-    settings = {}
-    for node in tree.body:
-        if isinstance(node, ast.Assign) and len(node.targets) == 1:
-            target = node.targets[0]
-            if isinstance(target, ast.Name):
-                try:
-                    settings[target.id] = ast.literal_eval(node.value)
-                except ValueError:
-                    pass
-    return path, settings, module_imports(path)
+    return path, stack_files.profile(board, BOARDS), module_imports(path)
 
 
 def module_imports(path):
@@ -110,28 +105,15 @@ def local_imports(names):
     return [(found[name], name) for name in sorted(found)]
 
 
-def stack_sources(dialect, with_meta):
-    """[(source path, path in the tree without extension)] of the stack to compile."""
-    out = []
-    for dirpath, dirnames, filenames in os.walk(STACK):
-        dirnames[:] = sorted(d for d in dirnames if d != "__pycache__")
-        rel_dir = os.path.relpath(dirpath, FIRMWARE)
-        in_dialects = os.path.basename(dirpath) == "dialects"
-        for name in sorted(filenames):
-            if not name.endswith(".py"):
-                continue
-            stem = name[:-3]
-            if in_dialects and stem != "__init__":
-                # Only the board's dialect; names, enums and layouts are host-side.
-                wanted = {dialect}
-                if with_meta:
-                    wanted |= {dialect + "_meta", "layout"}
-                if stem not in wanted:
-                    continue
-            elif stem.endswith("_meta") and not with_meta:
-                continue
-            out.append((os.path.join(dirpath, name), os.path.join(rel_dir, stem).replace(os.sep, "/")))
-    return out
+def stack_sources(services, dialect, roots, with_meta, native):
+    """[(source path, path in the tree without extension)] of the stack's modules for a
+    board with these services and dialect (stack_files.stack_modules; roots: the files
+    whose imports count too: main.py, the profile, the modules it imports)."""
+    try:
+        rels = stack_files.stack_modules(services, dialect, roots, native, with_meta)
+    except ValueError as e:
+        raise FlashError(str(e))
+    return [(os.path.join(FIRMWARE, rel), rel[:-3]) for rel in rels]
 
 
 def referenced_messages(sources, names):
@@ -203,13 +185,14 @@ def build(board, out, arch=None, with_meta=False, messages=None, opt=0, native=T
         raise FlashError("unknown --arch %s (mpy-cross knows %s, host)"
                          % (arch, ", ".join(ARCH_BY_INDEX[1:])))
     dialect = settings.get("DIALECT", "common")
-    sources = stack_sources(dialect, with_meta)
-    if not any(rel == "mavstack/dialects/" + dialect for _, rel in sources):
+    if not os.path.isfile(os.path.join(STACK, "dialects", dialect + ".py")):
         raise FlashError("board %s wants dialect %r: firmware/mavstack/dialects/%s.py missing"
                          % (board, dialect, dialect))
-    if not native:
-        sources = [s for s in sources if os.path.basename(s[0]) not in NATIVE_MODULES]
-    sources += local_imports(imports)
+    local = local_imports(imports)
+    roots = [os.path.join(FIRMWARE, "main.py"), profile] + [src for src, _ in local]
+    if "SERVICES" not in settings:
+        raise FlashError("board %s: no SERVICES flash can read (a tuple of service names)" % board)
+    sources = stack_sources(settings["SERVICES"], dialect, roots, with_meta, native) + local
 
     with tempfile.TemporaryDirectory() as work:
         if messages is not None:
