@@ -13,6 +13,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FIRMWARE = os.path.join(ROOT, "firmware")
 BOARDS = os.path.join(ROOT, "boards")
 NATIVE_MODULES = ("bytes_viper.py", "sha256_viper.py")  # hold @micropython.viper code
+# compat.py's stand-ins for what a port lacks, which its imports do not bring: CPython's
+# (never on a board) and the qemu port's clock (there when the profile imports it).
+STAND_INS = ("mavstack.compat_cpython", "mavstack.qemu")
 _OPS = {ast.Add: lambda a, b: a + b, ast.Sub: lambda a, b: a - b, ast.Mult: lambda a, b: a * b,
         ast.BitOr: lambda a, b: a | b, ast.LShift: lambda a, b: a << b}
 
@@ -116,7 +119,10 @@ def stack_modules(services, dialect, roots=(), native=True, meta=False):
         found.add(name)
         parts = name.split(".")
         todo += [".".join(parts[:i]) for i in range(1, len(parts))]
-        todo += sorted(imported(name, index[name], index) - found)
+        theirs = imported(name, index[name], index)
+        if name == "mavstack.compat":
+            theirs -= set(STAND_INS)
+        todo += sorted(theirs - found)
     return sorted(os.path.relpath(index[m], FIRMWARE).replace(os.sep, "/") for m in found)
 
 

@@ -130,10 +130,11 @@ def test_flash_build_tree(tmp_path, board, arch):
         files.update(os.path.relpath(os.path.join(dirpath, f), out) for f in filenames)
     # radio.mpy: the settings these profiles share (boards/radio.py), which they import.
     # Only the services they list (status, params, commands, missions, streams) come, with
-    # what those and main.py import: not SHA-256 (signing's) nor RAM storage (qemu's).
+    # what those and main.py import: not SHA-256 (signing's), RAM storage and the clock of
+    # the emulated boards (qemu's), nor compat's stand-ins for CPython.
     unlisted = ("services/auth", "services/calibration", "services/debug", "services/ftp/",
                 "services/geography", "services/inputs/", "services/seed_", "services/servos",
-                "services/signing", "kernels/sha256", "storage_ram")
+                "services/signing", "kernels/sha256", "storage_ram", "qemu", "compat_cpython")
     used = {f for f in stack_modules() if not any(f.startswith("mavstack/" + u) for u in unlisted)}
     assert files == {"main.py", "board.py", "radio.mpy"} | used
     with open(os.path.join(ROOT, "boards", board + ".py")) as f:
