@@ -59,7 +59,7 @@ class Live:
         for t in self.targets:
             t.start()
             self.pools[t.dialect] = t.saved + frames.corpus(self.rng, table=t.table)
-            t.fault_state = [t.vehicle.starts, 0, time.time(), []]
+            t.fault_state[0], t.fault_state[2] = t.vehicle.starts, time.time()
         self.start = time.time()
         end = self.start + self.seconds
         turn = min(SEGMENT_S, max(self.seconds / len(self.targets), EXCHANGE_EVERY_S))

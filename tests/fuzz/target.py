@@ -50,6 +50,9 @@ class Target:
         self.added = 0
         self.resends = 0  # sentinels sent again (unanswered within ACK_WAIT_S)
         self.faults_noted = 0  # console fault lines the engine has counted
+        # SYS_STATUS' fault counts as last seen: [starts then, their sum, when, and the
+        # increases not yet told on the console: [(since, deadline)]] (live.fault_check)
+        self.fault_state = [0, 0, 0.0, []]
         self.answers = set()  # the features of the batch being delivered
         self.previous = []  # the batch before (live.py keeps it)
         self.port = self.sentinel = self.gcs = None
