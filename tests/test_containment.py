@@ -95,3 +95,11 @@ def test_the_unix_vehicle_survives_a_faulty_handler(vehicle, tmp_path):
     out = v.output()
     assert "Traceback" not in out and "mavstack: Fault: msg 252: KeyError" in out, out
     assert time.time() - t0 < 60
+
+
+def test_what_the_board_fuzz_found_is_answered_heap_locked():
+    # tests/mpy/fuzz_found.py: ints of 2^30 and more, huge floats, refusals' texts; the
+    # emulated boards run it too (test_mcu.py), where such ints are heap objects.
+    r = run_mpy(os.path.join(MPY, "fuzz_found.py"), path=[MPY], timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert r.stdout.strip().splitlines()[-1].startswith("ok"), r.stdout

@@ -74,14 +74,15 @@ def f32_to_int(p, o):
 
     Command parameters are floats even when they carry integers (ids, flags);
     this reads them without creating a float. NaN and infinities read as 0;
-    magnitudes beyond int32 saturate.
+    magnitudes of 2^30 and more saturate at 2^30 - 1, the largest small int (a larger
+    int is a heap object on a 32-bit board: docs/design.md).
     """
     hi = p[o + 2] | p[o + 3] << 8  # sign, exponent, top of the mantissa: in 16-bit halves
     e = (hi >> 7) & 0xFF  # (small ints: docs/design.md)
     if e == 0xFF or e < 126:
         return 0
-    if e > 157:
-        v = 0x7FFFFFFF
+    if e > 156:  # |f| >= 2^30
+        v = 0x3FFFFFFF
     else:
         m = (hi & 0x7F | 0x80) << 16 | p[o + 1] << 8 | p[o]
         shift = e - 150

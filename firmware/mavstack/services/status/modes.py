@@ -220,8 +220,8 @@ class Modes:
         # A board without a mode table: the flags alone.
         status = self.status
         if flags & ~self.flags_supported:
-            status.reason = "mode flags 0x%02x not supported" % (flags & ~self.flags_supported)
-            status.statustext(_WARNING, "Mode: " + status.reason)
+            status.reason = "mode flags not supported"  # constants: a board may lock its heap
+            status.statustext(_WARNING, b"Mode: flags not supported")
             return _DENIED
         if status.mode_check is not None:
             result = status.veto(status.mode_check(flags, 0), b"Mode: ")
@@ -290,7 +290,9 @@ class Modes:
         if not self.status.ep.allows(link):
             self.status.statustext(_WARNING, b"Mode: GCS not in control")
             return
-        self.set_mode(p[5], u32(p, 0), link)  # (a PX4 encoding taught the link: conventions.py)
+        # (a PX4 encoding taught the link: conventions.py). No mode is numbered 2^30 or
+        # more (PX4's sub modes are small): such a number stays a small int, and no mode.
+        self.set_mode(p[5], u32(p, 0) if p[3] < 0x40 else 0x3FFFFFFF, link)
 
     def _set_standard_mode(self, cmd):
         # param1: MAV_STANDARD_MODE. One the vehicle does not have is not supported.

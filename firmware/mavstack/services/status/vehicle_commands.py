@@ -8,7 +8,7 @@ Reference: docs/services/status.md
 from struct import pack_into
 
 from ... import VERSION
-from ...compat import const
+from ...compat import const, heap_open, heap_close
 from ...statustext import CRITICAL, WARNING
 from .conventions import shows_px4
 
@@ -156,7 +156,20 @@ class VehicleCommands:
             return _ACCEPTED
         if not (cmd.finite(5) and cmd.finite(6) and cmd.finite(7)):
             return _DENIED
-        alt_mm = int(round(cmd.float(7) * 1000))
+        # A rare event, with floats and ints past 2^30 (heap objects on a 32-bit board):
+        # the heap opened for it, as a board may lock it.
+        depth = heap_open()
+        try:
+            return self._set_home_at(cmd)
+        finally:
+            heap_close(depth)
+
+    def _set_home_at(self, cmd):
+        status = self.status
+        alt = cmd.float(7)  # finite, but a float32 reaches 3.4e38: ranges before ints
+        if not -2000000.0 < alt < 2000000.0:
+            return _DENIED
+        alt_mm = int(round(alt * 1000))
         if cmd.is_int:
             frame = cmd.frame
             lat = cmd.int(5)
@@ -166,8 +179,12 @@ class VehicleCommands:
             elif frame != _FRAME_GLOBAL and frame != _FRAME_GLOBAL_INT:
                 return _DENIED
         else:
-            lat = int(round(cmd.float(5) * 1e7))
-            lon = int(round(cmd.float(6) * 1e7))
+            lat = cmd.float(5)
+            lon = cmd.float(6)
+            if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
+                return _DENIED
+            lat = int(round(lat * 1e7))
+            lon = int(round(lon * 1e7))
         if not (-900000000 <= lat <= 900000000 and -1800000000 <= lon <= 1800000000):
             return _DENIED
         if not -2000000000 < alt_mm < 2000000000:
