@@ -128,7 +128,7 @@ class PilotInputs:
     def _yaw_rate(self, r):
         if r.uses_yaw_rate():
             return r.f(44)
-        if r.uses_yaw():
+        if r.uses_yaw() and math.isfinite(r.f(40)):  # (an infinite yaw is none: sin raises)
             err = math.atan2(math.sin(r.f(40) - self.sim.heading), math.cos(r.f(40) - self.sim.heading))
             yaw_max = self.limits()[3]
             return max(-yaw_max, min(yaw_max, err * _YAW_GAIN))
