@@ -220,6 +220,15 @@ def test_offboard_setpoints_at_infinity_are_no_demand(tmp_path):
     v.poll(2)
     assert pilot.demand("OFFBOARD", 0.02) is None
 
+    # Found by a 10-minute make fuzz: a velocity setpoint with an infinite yaw (not its
+    # rate) made math.sin raise ValueError on every tick. It turns nowhere.
+    velocity_and_yaw = 0x9C7  # type_mask: position, acceleration and yaw rate ignored
+    for yaw in (inf, -inf):
+        v.send("set_position_target_local_ned", 0, 1, 1, 1, velocity_and_yaw, 0, 0, 0, 1.0, 0.5, 0, 0, 0, 0, yaw, 0)
+        v.poll(2)
+        got = pilot.demand("OFFBOARD", 0.02)
+        assert got is not None and got[0] == "vel" and got[4] == 0.0, got
+
 
 BOARD_HEAP_LOCKED = """
 import micropython
