@@ -230,6 +230,23 @@ def test_offboard_setpoints_at_infinity_are_no_demand(tmp_path):
         assert got is not None and got[0] == "vel" and got[4] == 0.0, got
 
 
+def test_the_simulator_above_44_km_keeps_publishing(tmp_path):
+    # Found by a 10-minute make fuzz: a home set 60 km up (DO_SET_HOME takes altitudes to
+    # 2,000 km) is the ground the simulated vehicle stands on; the barometer's formula
+    # then raised a negative number to a fractional power, a complex pressure, and every
+    # tick raised TypeError publishing it (106 reports). There is no air up there.
+    v = FuzzVehicle(tmp_path / "st", whole=True)
+    v.poll(100, 10)
+    v.send("heartbeat", 6, 8, 0, 0, 0)
+    v.send("command_long", 1, 1, 179, 0, 0, 0, 0, 0, 47.3, 8.5, 60000.0)
+    v.poll(10, 10)
+    sim = v.bench.app
+    sim.alt = sim.pilot.mission.ground()  # where a landing or a disarm puts it
+    assert sim.alt == 60000.0
+    v.poll(200, 10)
+    assert sum(v.ep.faults.counts) == 0, v.ep.faults.counts
+
+
 BOARD_HEAP_LOCKED = """
 import micropython
 from harness import Bench

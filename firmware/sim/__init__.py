@@ -153,10 +153,11 @@ class Simulator:
                round(mx), round(my), round(mz))
         tm.scaled_imu(*imu)
         tm.raw_imu(*imu)
-        press = 1013.25 * (1.0 - 2.25577e-5 * self.alt) ** 5.25588
+        air = 1.0 - 2.25577e-5 * self.alt  # (none from 44 km up: a negative base's power is complex)
+        press = 1013.25 * air ** 5.25588 if air > 0.0 else 0.0
         temp = 15.0 - 0.0065 * self.alt
-        tm.scaled_pressure(press, 0.0, round(temp * 100))
-        tm.raw_pressure(round(press * 10) & 0x7FFF, 0, 0, round(temp * 100))
+        tm.scaled_pressure(press, 0.0, _int16(temp * 100))
+        tm.raw_pressure(round(press * 10) & 0x7FFF, 0, 0, _int16(temp * 100))
         tm.highres_imu(ax * 0.00980665, ay * 0.00980665, az * 0.00980665, p, q, r, mx / 1000, my / 1000, mz / 1000,
                        press, 0.0, self.alt, temp, 0x1FFF)
         tm.optical_flow(0, 0, 0, self.vn, self.ve, 255 if rel > 0.3 else 0, max(rel, 0.0))
