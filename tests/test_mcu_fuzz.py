@@ -28,6 +28,7 @@ _GC_NOISE = 256  # bytes
 BATCH = 24  # frames between sentinels
 _SETUP_SIGNING = 256
 _REBOOT_SHUTDOWN = 246
+_FORCE_REBOOT = 20190226.0  # PREFLIGHT_REBOOT_SHUTDOWN param6: even when armed
 
 
 def _generator():
@@ -76,6 +77,21 @@ def _fuzz(gcs, seconds):
     return handled
 
 
+def _shut_down(gcs, b):
+    """Shut the vehicle down (main.py returns to the REPL), whatever the fuzz left: armed
+    (forced, param6), or another station in control (released once its heartbeats stop,
+    GCS_TIMEOUT_MS): asked again until ACCEPTED. The REPL must not be read before."""
+    result = None
+    for _ in range(12):
+        command(gcs, _REBOOT_SHUTDOWN, 2.0, 0, 0, 0, 0, _FORCE_REBOOT, target=(1, 1))
+        got = recv(gcs, "COMMAND_ACK", 2.0, lambda m: m.command == _REBOOT_SHUTDOWN)
+        result = None if got is None else got.result
+        if result == 0:
+            return
+        time.sleep(1.0)
+    raise AssertionError("shutdown not accepted (last result %s)\n%s" % (result, b.console()))
+
+
 def _session(fuzz_seconds):
     """Boot the M3 vehicle, fuzz it (or not), read a parameter, shut it down -> (held heap
     in bytes, frames handled, the console)."""
@@ -91,8 +107,7 @@ def _session(fuzz_seconds):
                 break
         assert got is not None, "no answer to PARAM_REQUEST_READ after the fuzz\n" + b.console()
         console = b.console()
-        command(gcs, _REBOOT_SHUTDOWN, 2.0, target=(1, 1))  # shut down: main.py returns to the REPL
-        assert recv(gcs, "COMMAND_ACK", 5.0, lambda m: m.command == _REBOOT_SHUTDOWN) is not None
+        _shut_down(gcs, b)
         time.sleep(1.0)
         out = b.exec("import board\nprint(board.HEAP[0])")
     return int(out.split()[-1]), handled, console
