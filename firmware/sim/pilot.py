@@ -290,9 +290,12 @@ class FlightPilot(FlightCommands):
         elif runner.state == 5 and before != 5:  # COMPLETE
             if self.sim.alt - self.mission.ground() <= _GROUND_M:
                 self._touchdown()
-            else:
+            else:  # at the last item (as PX4 and ArduPilot hold), not where it counted as reached
+                target = self.sim.target
                 self.ep.statustext(INFO, "Mission: complete, holding")
                 self.set_mode("LOITER")
+                if self.mode == "LOITER" and target is not None:
+                    self.hold_at = target
 
     def _fly_pilot(self, dt):
         # STABILIZE, ALT_HOLD, POSITION, OFFBOARD: the pilot's (or offboard computer's) demand.
