@@ -9,10 +9,11 @@ like a traceback or an exit, which the engine treats as a failure.
 """
 import os
 import signal
-import socket
 import subprocess
 import threading
 import time
+
+from vehicle import free_udp_port  # tests/ is on the path (engine.py, pytest)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -26,14 +27,6 @@ NAME = "unix_fuzz"
 SERVICES = ("signing",) + unix.SERVICES
 '''
 BAD = ("Traceback (most recent call last)", "MemoryError")  # console words of a failure
-
-
-def free_udp_port():
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
 
 
 class UnixVehicle:
