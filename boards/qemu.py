@@ -110,8 +110,10 @@ class StandingVehicle:
 
     def tick(self, now):
         tm = self.tm
-        if tm is None or ticks_diff(now, self._next) < 0:
-            return
+        if tm is None:
+            return 1000
+        if ticks_diff(now, self._next) < 0:
+            return ticks_diff(self._next, now)
         self._next = ticks_add(now, 50)  # 20 Hz, above any rate asked for
         if self._repl_uart and _ctrl_c():
             raise self._interrupt
@@ -120,6 +122,7 @@ class StandingVehicle:
         tm.global_position(self.LAT, self.LON, self.ALT_MM, 0, 0, 0, 0, 0)
         tm.gps_raw(3, self.LAT, self.LON, self.ALT_MM, 100, 100, 0, 0, 12)
         tm.vfr_hud(z, z, 0, 0, z, z)
+        return 50
 
 
 _mem32 = None

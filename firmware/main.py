@@ -11,9 +11,10 @@ mode: docs/reliability.md.
 import gc
 import sys
 
-from mavstack.compat import ticks_ms, ticks_diff, sleep_ms
+from mavstack.compat import ticks_ms, ticks_diff
 from mavstack.endpoint import Endpoint, Reboot, Shutdown
 from mavstack.faults import APP
+from mavstack.sleeper import Sleeper
 from mavstack.services import compose
 from mavstack.storage import Storage
 from mavstack.transport import open_transport
@@ -93,7 +94,11 @@ def build(board, opts, dog=None):
         for spec in specs:
             ep.add_link(open_transport(spec, udp_rate, ep.setting("UDP_RX_CHUNK", 0)))
     else:
+        # --set baud=N: the board's own links budget as if at N baud (bench_mcu_load.py).
+        baud = ep.setting("BAUD_BUDGET", 0)
         for transport in board.transports():
+            if baud:
+                transport.bytes_per_s = baud // 10
             ep.add_link(transport)
     if dog is not None:
         dog.feed()
@@ -125,10 +130,11 @@ def _check_ram(ep, board):
         ep.statustext(4, "RAM: %d KB in use, budget %d KB" % (used >> 10, budget >> 10))
 
 
-def run(ep, app=None, period_ms=1, dog=None):
+def run(ep, app=None, dog=None):
+    """Poll, then sleep until the next work is due or a byte arrives (sleeper.py)."""
     # Sleeping through status.idle lets it measure the loop's load for SYS_STATUS.
     status = ep.services.get("status")
-    idle = status.idle if status is not None else sleep_ms
+    sleep = Sleeper(ep.links).sleep
     faults = ep.faults
     # HEAP_LOCK (--set heap_lock=1): the loop must not allocate, and a MemoryError
     # says where it did.
@@ -152,13 +158,14 @@ def run(ep, app=None, period_ms=1, dog=None):
             now = ticks_ms()
             ep.poll(now)
             if app is not None:
-                faults.tick(app, now)  # the application raising is a fault, not the end
-                if faults.error is not None:
-                    faults.count(APP, 0)
+                _app(ep, app, now)
             if report_ms and ticks_diff(now, _REPORT[1]) >= report_ms:
                 _REPORT[1] = now
                 _heap_report(lock)
-            idle(period_ms)
+            if status is not None:
+                status.idle(ep.wait_ms, sleep)
+            else:
+                sleep(ep.wait_ms)
     except MemoryError as e:
         if lock:
             micropython.heap_unlock()
@@ -168,6 +175,17 @@ def run(ep, app=None, period_ms=1, dog=None):
     finally:
         if lock:
             micropython.heap_unlock()
+
+
+def _app(ep, app, now):
+    """The application's tick: its raising is a fault, not the end; what it returns (ms
+    to its next work, None: every pass) bounds the loop's sleep, as a service's does."""
+    faults = ep.faults
+    ms = faults.tick(app, now)
+    if faults.error is not None:
+        faults.count(APP, 0)
+        ms = 1
+    ep.until(1 if ms is None else ms)
 
 
 _REPORT = [0, 0]  # mem_total() after the last heap report, and when it was made
@@ -193,7 +211,7 @@ def main(argv):
     while True:
         ep, app = build(board, opts, dog)
         try:
-            run(ep, app, 1, dog)
+            run(ep, app, dog)
         except Reboot:
             # A board resets in board.reset(); the unix vehicle (and a board without
             # reset()) restarts in place, after letting the old vehicle go: a small heap

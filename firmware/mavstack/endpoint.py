@@ -2,10 +2,12 @@
 
 Services (heartbeat, parameters, commands, missions, streams, ...) are optional
 modules composed per board: each attaches to the endpoint, registers the message
-ids it handles with `on()`, and, if it has periodic work, a `tick(now_ms)`.
+ids it handles with `on()`, and, if it has periodic work, a `tick(now_ms)` that
+says in how many ms it next has work (None: every pass). poll() runs a tick when
+it is due, or after a frame came in; wait_ms says how long the loop may sleep.
 Reference: docs/core.md.
 """
-from .compat import ticks_ms
+from .compat import const, ticks_ms, ticks_add, ticks_diff
 from .faults import Faults, MESSAGE, TICK, LINK
 from .link import Link
 
@@ -17,6 +19,10 @@ class Reboot(Exception):
 class Shutdown(Exception):
     """Raised out of poll() once a shutdown was acknowledged; main.py returns."""
 
+
+WAIT_MAX_MS = const(100)  # the longest poll() lets the loop sleep (the watchdog is fed between)
+_FAR_MS = const(60000)  # no ticker asks to wait this long
+_SLACK_MS = const(10)  # a ticker due this soon runs with those due now (streams.md)
 
 # Raised as made here, once: making an exception allocates, and the heap may be locked.
 REBOOT = Reboot()
@@ -34,6 +40,11 @@ class Endpoint:
         self.now = self._born = ticks_ms()
         self._handlers = {}  # msgid -> (handler(link, payload), ...)
         self.tickers = []  # services with periodic work, in the order they were added
+        self._due = []  # ticks_ms at which each ticker next has work
+        self._next = self.now  # ... the first of them
+        self.heard = False  # a frame came in (or wake()): every ticker runs on this pass
+        self._all = False  # ... this pass's
+        self.wait_ms = 0  # how long the loop may sleep after this pass (poll sets it)
         self.services = {}
         self.faults = Faults(self, (Reboot, Shutdown))  # what a handler or tick raised: faults.py
         # Shared between services, filled as they attach:
@@ -71,6 +82,7 @@ class Endpoint:
         service.attach(self)
         if hasattr(service, "tick"):
             self.tickers.append(service)
+            self._due.append(self.now)
         return service
 
     def on(self, msgid, handler):
@@ -120,6 +132,7 @@ class Endpoint:
     def dispatch(self, link, msgid, payload):
         """Hand a frame to its handlers; one that raises is a fault (counted, reported)
         and the frame goes on to the others."""
+        self.heard = True
         handlers = self._handlers.get(msgid)
         if handlers is not None:
             self.faults.payload = payload
@@ -130,9 +143,15 @@ class Endpoint:
                     self.faults.count(MESSAGE, msgid)
                 i += 1
 
+    def wake(self):
+        """Every ticker runs on the next pass, at once (work made outside a frame)."""
+        self.heard = True
+        self.wait_ms = 0
+
     def poll(self, now=None):
-        """One pass of the main loop: read every link, then run due service work. A link
-        or a service that raises is a fault: the others go on.
+        """One pass of the main loop: read every link, then run the service work that is
+        due (all of it after a frame came in). A link or a service that raises is a
+        fault: the others go on. Then wait_ms says when the next work is due.
 
         Never blocks; call it from a plain loop or wrap it in asyncio.
         """
@@ -148,13 +167,50 @@ class Endpoint:
             i += 1
         if self._clock is not None:
             self._clock.advance(now)
-        i = 0
-        while i < len(self.tickers):
-            faults.tick(self.tickers[i], now)
-            if faults.error is not None:
-                faults.count(TICK, i)
-            i += 1
+        self._all = self.heard
+        self.heard = False
+        ms = ticks_diff(self._next, now)
+        if not self._all and 0 < ms < _FAR_MS:
+            self.wait_ms = ms  # no ticker is due: the cheap pass
+        else:
+            self._ticks(now)
+        if self.heard:  # woken meanwhile
+            self.wait_ms = 0
         faults.report(now)
+        if faults.owed:
+            self.until(faults.report_at(now))
+
+    def _ticks(self, now):
+        # A ticker due within _SLACK_MS runs now too: fewer passes wake the loop.
+        self.wait_ms = WAIT_MAX_MS
+        due = self._due
+        i = 0
+        while i < len(due):
+            ms = ticks_diff(due[i], now)
+            if self._all or not _SLACK_MS < ms < _FAR_MS:  # (farther: the clock jumped)
+                self._tick(i, now)
+            elif ms < self.wait_ms:
+                self.wait_ms = ms
+            i += 1
+        self._next = ticks_add(now, self.wait_ms)  # the first ticker due
+
+    def _tick(self, i, now):
+        # (small functions: docs/design.md)
+        due = self._due
+        faults = self.faults
+        ms = faults.tick(self.tickers[i], now)
+        if faults.error is not None:
+            faults.count(TICK, i)
+            ms = 1
+        elif ms is None:
+            ms = 1
+        due[i] = ticks_add(now, ms)
+        self.until(ms)
+
+    def until(self, ms):
+        """The loop may sleep at most ms after this pass."""
+        if ms < self.wait_ms:
+            self.wait_ms = ms if ms > 0 else 0
 
     def close(self):
         for link in self.links:

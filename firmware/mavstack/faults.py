@@ -57,8 +57,11 @@ class Faults:
             fn(link, self.payload)
 
     def tick(self, obj, now):
+        """obj.tick(now) -> what it returned (ms to its next work), None when it raised."""
+        self.result = None
         with self:
-            obj.tick(now)
+            self.result = obj.tick(now)
+        return self.result
 
     def poll(self, link):
         with self:
@@ -118,6 +121,10 @@ class Faults:
             self._tell()
         finally:
             heap_close(depth)
+
+    def report_at(self, now):
+        """ms until the owed report may go."""
+        return ticks_diff(self._next, now)
 
     def _tell(self):
         kind = self.last_kind

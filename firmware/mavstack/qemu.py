@@ -131,6 +131,18 @@ def sleep_ms(ms):
             return
 
 
+def wait_ms(ms):
+    """sleep_ms that ends as soon as a byte is in a UART's ring (the loop's sleep)."""
+    end = ticks_add(_clock.update(), ms)
+    while True:
+        for u in UARTS:
+            u.drain()
+            if u._count:
+                return
+        if ticks_diff(end, _clock.update()) <= 0:
+            return
+
+
 # --- the MAVLink UART ----------------------------------------------------------
 if MODEL == "m3":
     _UART = 0x40005000  # CMSDK APB UART 1: DATA, STATE (+4), CTRL (+8), BAUDDIV (+16)

@@ -57,12 +57,14 @@ class Guard:
 
     def tick(self, now):
         if self._done:
-            return
+            return 1000
         if self.safe and ticks_diff(now, self._next_text) >= 0:
             self._next_text = ticks_add(now, _TEXT_MS)
             self.ep.statustext(_CRITICAL, self.text)
         if ticks_diff(now, self._clean_at) >= 0:
             self.stop()
+        ms = ticks_diff(self._clean_at, now)
+        return ms if not self.safe or ticks_diff(self._next_text, now) > ms else ticks_diff(self._next_text, now)
 
     def stop(self):
         """A clean minute, or a clean end (main.py): the count starts again."""

@@ -172,10 +172,10 @@ class Signing:
             self.ep.statustext(WARNING, self._warning)
             self._warning = None
         if not self.enabled:
-            return
+            return _CLOCK_MS
         dt = ticks_diff(now, self._clk_at)
         if dt < _CLOCK_MS:
-            return
+            return _CLOCK_MS - dt
         self._clk_at = now
         _advance(self._clk, dt)
         if ticks_diff(now, self._synced_at) >= _SYNC_MS:
@@ -185,6 +185,7 @@ class Signing:
             copy(self.ts, self._clk, 0, 6)
         if _later(self.ts, 0, self._due, 0):
             self._renew()
+        return _CLOCK_MS
 
     def _sync(self):
         # The clock becomes the time of day, when that is known.

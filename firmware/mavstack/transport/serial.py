@@ -32,6 +32,7 @@ class SerialTransport:
             fd = os.open(device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
             self._f = None
         self.fd = fd
+        self.waitable = self._f if MICROPYTHON else fd  # for the loop's sleep (sleeper.py)
         if MICROPYTHON:
             termios.setraw(fd)
         else:  # CPython keeps setraw in the tty module

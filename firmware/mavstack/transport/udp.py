@@ -48,6 +48,7 @@ class UdpTransport:
             s.connect(self.peer)
             s.setblocking(False)
             self._cur = s
+            self.waitable = s  # what the loop's sleep watches for bytes (sleeper.py)
 
     def readinto(self, buf):
         n = self._read(buf)

@@ -284,6 +284,7 @@ class Commands:
             else:
                 waiting |= q
                 i += 1
+        return 1 if self._held_n else 1000
 
     def _send_held(self, e):
         held = self._held

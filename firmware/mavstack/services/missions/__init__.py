@@ -59,6 +59,7 @@ _CAP_MISSION_FENCE = const(16384)
 _CAP_MISSION_RALLY = const(32768)
 
 _CURRENT_PERIOD_MS = const(1000)
+_IDLE_MS = const(1000)  # the tick with no transfer under way
 # The requests about one plan, by msgid - 37: bits 0-2 the offset of target_system
 # (mission_type is 2 bytes on), and how the request bears on the plan (transfer.CHANGE,
 # EVERY: MISSION_CLEAR_ALL, in rare.py, says so itself).
@@ -163,10 +164,14 @@ class Missions:
                 self.send_current(link)
             self._current_changed = False
             self._current_due = ticks_add(now, _CURRENT_PERIOD_MS)
+        if t.state != IDLE:
+            return 1  # a transfer's timeouts
+        return ticks_diff(self._current_due, now) if self.ep.services.get("streams") is None else _IDLE_MS
 
     def current_changed(self):
-        """Send MISSION_CURRENT on the next tick (the runner calls this)."""
+        """Send MISSION_CURRENT on the next pass (the runner calls this)."""
         self._current_changed = True
+        self.ep.wake()
 
     # --- admission ----------------------------------------------------------------
     # mission_type is an extension field: where the dialect has none it reads as 0 (the

@@ -119,8 +119,7 @@ class Params(ParamStore, LinkEncodings, ParamTable):
         for li in range(len(self._pending)):  # a link's index is its place in ep.links
             if self._pending[li]:
                 self._pace(li, links[li], now)
-        if self.dirty:
-            self._autosave(now)
+        return self._autosave(now) if self.dirty else self._wait()
 
     def _pace(self, li, link, now):
         sent = 0

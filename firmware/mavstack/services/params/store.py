@@ -21,6 +21,7 @@ _RESULT_ACCEPTED = const(0)
 _RESULT_DENIED = const(2)
 _RESULT_UNSUPPORTED = const(3)
 _RESULT_FAILED = const(4)
+_IDLE_MS = const(1000)  # the tick with nothing owed and nothing to save
 
 
 class ParamStore:
@@ -137,8 +138,24 @@ class ParamStore:
         self._changed_at = self.ep.now
 
     def _autosave(self, now):
-        if self.autosave_ms and ticks_diff(now, self._changed_at) >= self.autosave_ms:
+        """Save when PARAM_AUTOSAVE_MS have passed since the last change -> ms to the
+        next work (that save, or values still owed to a link)."""
+        if not self.autosave_ms:
+            return self._wait()
+        ms = self.autosave_ms - ticks_diff(now, self._changed_at)
+        if ms <= 0:
             self.save()
+        return self._wait() if ms <= 0 or ms > self._wait() else ms
+
+    def _wait(self):
+        """ms to the next work: 1 while values are owed to a link (paced), else idle."""
+        pending = self._pending
+        i = 0
+        while i < len(pending):
+            if pending[i]:
+                return 1
+            i += 1
+        return _IDLE_MS
 
     def _take(self, values, saved):
         """A whole set of values (reload, defaults): sent and reported where changed."""

@@ -14,10 +14,10 @@ from ...compat import const, ticks_diff, ticks_add
 from ...endpoint import REBOOT, SHUTDOWN
 from ...kernels import copy
 from ...link import RANK_VITAL, RANK_OTHER, RANK_AUTO
-from ...statustext import TextQueue, CRITICAL, NOTICE
+from ...statustext import TextQueue, NOTICE
 from .conventions import Conventions
 from .health import Health
-from .modes import Modes
+from .modes import Modes, veto
 from .operator import Operator, on_change_operator_control
 from . import vehicle_commands
 
@@ -32,12 +32,10 @@ MAV_STATE_CRITICAL = const(5)
 MAV_STATE_EMERGENCY = const(6)
 # MAV_MODE_FLAG
 MODE_ARMED = const(128)
-MODE_MANUAL_INPUT = const(64)
 MODE_HIL = const(32)
 MODE_STABILIZE = const(16)
 MODE_GUIDED = const(8)
 MODE_AUTO = const(4)
-MODE_TEST = const(2)
 MODE_CUSTOM = const(1)
 
 _ACCEPTED = const(0)
@@ -53,6 +51,7 @@ _CAP_MAVLINK2 = const(8192)
 _MAVLINK_VERSION = const(3)
 
 _PERIOD_MS = const(1000)  # HEARTBEAT, and SYS_STATUS when no streams service schedules it
+_WAIT_MS = const(100)
 _TEXT_FRAME = const(66)  # bytes of a MAVLink 2 STATUSTEXT, for pacing on slow links
 _TEXT_SHARE = const(4)  # STATUSTEXT may use a quarter of the slowest link
 
@@ -84,9 +83,7 @@ class Status:
         self.arm_check = self.mode_check = self.flight_mode_check = self.position = None
         self.on_gcs_lost = self.on_gcs_regained = self.on_hil = self.on_arm = self.on_flight_mode = None
         # SYS_STATUS figures: the application's, and what health.py measures
-        self.sensors_present = 0
-        self.sensors_enabled = 0
-        self.sensors_health = 0
+        self.sensors_present = self.sensors_enabled = self.sensors_health = 0
         self.fence_enabled = False
         self.fence_breached = False
         self.voltage_mv = 0xFFFF  # UINT16_MAX: not measured
@@ -97,12 +94,11 @@ class Status:
         self.errors_comm = 0
         # Home
         self.home_set = False
-        self.home_lat = 0
-        self.home_lon = 0
-        self.home_alt = 0
+        self.home_lat = self.home_lon = self.home_alt = 0
         self._home_changed = False
         self._clock_from_app = False  # the time of day came from the application (ep.clock)
         self._next_period = 0
+        self._gcs_ms = 0  # until a ground station may be lost (health.check_gcs)
         self._next_text = 0
         self._text_gap_ms = 0
         self.rebooting = 0  # the action on its way: 1 reboot, 2 shutdown; 0 none
@@ -112,6 +108,7 @@ class Status:
         self.modes = Modes(())
         self.health = Health(self)
         self.operator = None
+        self.ep = None
 
     # --- wiring ---------------------------------------------------------------
     def attach(self, ep):
@@ -195,7 +192,7 @@ class Status:
         if arm == self.armed:
             return _ACCEPTED
         if not force and self.arm_check is not None:
-            result = self.veto(self.arm_check(arm), b"Arm: " if arm else b"Disarm: ")
+            result = veto(self, self.arm_check(arm), b"Arm: " if arm else b"Disarm: ")
             if result != _ACCEPTED:
                 return result
         self.armed = arm
@@ -213,28 +210,14 @@ class Status:
         row = self.modes.by_name(name)
         return self.modes.enter(row, False) if row >= 0 else _DENIED
 
-    def veto(self, answer, prefix):
-        """A hook's answer (None | reason | (MAV_RESULT, reason)) -> MAV_RESULT; a refusal
-        is kept in self.reason and said in a STATUSTEXT starting with prefix."""
-        if answer is None:
-            return _ACCEPTED
-        if isinstance(answer, tuple):
-            result, reason = answer
-        else:
-            result, reason = _DENIED, answer
-        if result == _ACCEPTED:
-            return _ACCEPTED
-        self.reason = reason
-        if reason:
-            self.statustext(CRITICAL, prefix.decode() + reason)
-        return result
-
     def set_home(self, lat_e7, lon_e7, alt_mm):
         self.home_lat = int(lat_e7)
         self.home_lon = int(lon_e7)
         self.home_alt = int(alt_mm)
         self.home_set = True
-        self._home_changed = True  # ground stations learn it from HOME_POSITION
+        self._home_changed = True  # ground stations learn it from HOME_POSITION, at once
+        if self.ep is not None:
+            self.ep.wake()
 
     def set_sensors(self, present, enabled, health):
         """MAV_SYS_STATUS_SENSOR bitmasks."""
@@ -262,6 +245,8 @@ class Status:
 
     def statustext(self, severity, text):
         self.texts.put(severity, text)
+        if self.ep is not None:
+            self.ep.wake()  # sent on the next pass
 
     def gcs_present(self, link):
         """Does this link hear a ground station (its heartbeats, within gcs_timeout_ms)?"""
@@ -273,9 +258,9 @@ class Status:
         self._reboot_at = ticks_add(self.ep.now, self.reboot_delay_ms)
         self.statustext(NOTICE, b"Rebooting" if action == 1 else b"Shutting down")
 
-    def idle(self, ms):
-        """Sleep ms, counted as idle time for SYS_STATUS.load (health.py)."""
-        self.health.idle(ms)
+    def idle(self, ms, sleep=None):
+        """sleep(ms) (sleep_ms by default), counted as idle time for SYS_STATUS.load."""
+        self.health.idle(ms, sleep)
 
     def add_idle(self, us):
         self.health.add_idle(us)
@@ -292,7 +277,7 @@ class Status:
             self._links_changed()
         if ticks_diff(now, self._next_period) >= 0:
             self._period(now)
-        self.health.check_gcs(now)
+        self._gcs_ms = self.health.check_gcs(now)
         if self.operator is not None:
             self.operator.check(now)
         if self._home_changed:
@@ -310,9 +295,24 @@ class Status:
                 self.ep.board.shutdown()
                 raise SHUTDOWN
             raise REBOOT
+        return self._wait(now)
+
+    def _wait(self, now):
+        """ms to the next work: the period, a ground station's loss, a text's turn, the
+        reboot; at most _WAIT_MS with operator control (its release is checked then)."""
+        ms = ticks_diff(self._next_period, now)
+        if self._gcs_ms < ms:
+            ms = self._gcs_ms
+        if self.operator is not None and _WAIT_MS < ms:
+            ms = _WAIT_MS
+        if self.texts.count and ticks_diff(self._next_text, now) < ms:
+            ms = ticks_diff(self._next_text, now)
+        if self.rebooting and ticks_diff(self._reboot_at, now) < ms:
+            ms = ticks_diff(self._reboot_at, now)
+        return ms
 
     def send_all(self, msgid):
-        """A rare message (a change to announce) to every link, where the vehicle makes it."""
+        """A rare message (a change to announce) to every link."""
         send = self.ep.producers.get(msgid)
         if send is not None:
             for link in self.ep.links:

@@ -43,10 +43,11 @@ class Health:
         self._gcs_seen = []  # ticks_ms of the last heartbeat
         self._gcs_state = bytearray(0)  # _GCS_NEVER, _GCS_PRESENT or _GCS_LOST
 
-    def idle(self, ms):
-        """Sleep ms, counted as idle time for SYS_STATUS.load."""
+    def idle(self, ms, sleep=None):
+        """sleep(ms) (sleep_ms by default: the loop's may end early), counted as idle
+        time for SYS_STATUS.load."""
         t = ticks_us()
-        sleep_ms(ms)
+        (sleep or sleep_ms)(ms)
         self.add_idle(ticks_diff(ticks_us(), t))
 
     def add_idle(self, us):
@@ -142,15 +143,25 @@ class Health:
                 self.status.on_gcs_regained(link)
 
     def check_gcs(self, now):
-        # Every tick: a link whose ground station fell silent has lost it.
+        """Every tick: a link whose ground station fell silent has lost it -> ms until
+        the next may be lost (the status service's tick is due by then)."""
         state = self._gcs_state
+        first = self.status.gcs_timeout_ms
         i = 0
         while i < self.link_count:  # a link's index is its place in ep.links
-            if state[i] == _GCS_PRESENT and ticks_diff(now, self._gcs_seen[i]) > self.status.gcs_timeout_ms:
-                state[i] = _GCS_LOST
-                if self.status.on_gcs_lost is not None:
-                    self.status.on_gcs_lost(self.status.ep.links[i])
+            if state[i] == _GCS_PRESENT:
+                left = self.status.gcs_timeout_ms - ticks_diff(now, self._gcs_seen[i])
+                if left < 0:
+                    self._gcs_lost(i)
+                elif left < first:
+                    first = left
             i += 1
+        return first + 1
+
+    def _gcs_lost(self, i):
+        self._gcs_state[i] = _GCS_LOST
+        if self.status.on_gcs_lost is not None:
+            self.status.on_gcs_lost(self.status.ep.links[i])
 
     # --- producer: send(link) -> bool -------------------------------------------------
     def send_sys_status(self, link):

@@ -12,6 +12,7 @@ from struct import pack_into
 
 from ...compat import const
 from ...fields import u32
+from ...statustext import CRITICAL
 
 _NUMBER = const(0)
 _NAME = const(1)
@@ -224,7 +225,7 @@ class Modes:
             status.statustext(_WARNING, b"Mode: flags not supported")
             return _DENIED
         if status.mode_check is not None:
-            result = status.veto(status.mode_check(flags, 0), b"Mode: ")
+            result = veto(status, status.mode_check(flags, 0), b"Mode: ")
             if result != _ACCEPTED:
                 return result
         status.mode = flags
@@ -260,11 +261,11 @@ class Modes:
         if status.mode_check is not None:
             answer = status.mode_check(flags, entry[_NUMBER])
             if answer is not None:
-                return status.veto(answer, b"Mode: ")
+                return veto(status, answer, b"Mode: ")
         if status.flight_mode_check is not None:
             answer = status.flight_mode_check(entry[_NAME])
             if answer is not None:
-                return status.veto(answer, b"Mode: ")
+                return veto(status, answer, b"Mode: ")
         return _ACCEPTED
 
     def _apply(self, row):
@@ -272,6 +273,7 @@ class Modes:
         status = self.status
         if row != self.row:
             self.changed = True
+            status.ep.wake()  # announced on the next pass
         status.mode = entry[_FLAGS] & 0x7E | _MODE_CUSTOM
         status.custom_mode = entry[_NUMBER]
         self.row = row
@@ -358,3 +360,19 @@ class Modes:
         buf[off + 8] = self.standard[row] if row >= 0 else 0
         return link.send(_MSG_CURRENT_MODE)
 
+
+def veto(status, answer, prefix):
+    """A status hook's answer (None | reason | (MAV_RESULT, reason)) -> MAV_RESULT; a refusal
+    is kept in status.reason and said in a STATUSTEXT starting with prefix."""
+    if answer is None:
+        return _ACCEPTED
+    if isinstance(answer, tuple):
+        result, reason = answer
+    else:
+        result, reason = _DENIED, answer
+    if result == _ACCEPTED:
+        return _ACCEPTED
+    status.reason = reason
+    if reason:
+        status.statustext(CRITICAL, prefix.decode() + reason)
+    return result

@@ -151,6 +151,7 @@ class Streams:
         s.requested_us = interval_us
         self._apply(ls, s, self.ep.now)
         fit(ls, self.ep.producers)
+        self.ep.wake()  # the new deadline counts from the next pass
         return True
 
     def set_rate(self, link, msgid, hz):
@@ -264,8 +265,12 @@ class Streams:
             for ls in self.links:
                 measure(ls, now)
                 fit(ls, self.ep.producers)
+        wait = ticks_diff(self._rescale_at, now)
         for ls in self.links:
             run(ls, now)
+            if ls.wait < wait:
+                wait = ls.wait
+        return wait
 
 
 def create(ep):

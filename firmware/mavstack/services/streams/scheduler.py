@@ -11,6 +11,8 @@ from ...faults import PRODUCER
 
 MAX_INTERVAL_US = const(1000000000)  # below 2^30; also the most a fit stretches to
 
+_SLACK_MS = const(10)  # a stream may go this early, with others (endpoint.py's slack)
+_WAIT_MAX_MS = const(1000)  # the most run() lets a link's streams wait (ls.wait)
 _MARGIN_DIV = const(20)  # keep 1/20 of the budget for priority bursts
 _FLOOR_DIV = const(10)  # streams keep at least 1/10 of the budget in the fit
 _DEMAND_MAX = const(0x20000)  # B/s: demand << 12 stays below 2^30 (_stretch)
@@ -49,6 +51,7 @@ class LinkStreams:
         self.win_low = link.tx_low
         self.win_stream = 0
         self.priority_bps = 0
+        self.wait = 0  # ms from run()'s now to the first stream due (run sets it)
 
 
 # --- the fit (once a second, and when a request changes an interval) -------------------
@@ -117,6 +120,7 @@ def _stretch(interval_us, demand, avail):
 
 def run(ls, now):
     """Send what is due on one link, from ls.start on, while its budget lasts."""
+    ls.wait = _WAIT_MAX_MS
     streams = ls.streams
     n = len(streams)
     if n == 0:
@@ -131,13 +135,25 @@ def run(ls, now):
         i = i + 1 if i + 1 < n else 0
         if s.achieved_us <= 0 or s.send is None:
             continue
-        late = ticks_diff(now, s.due)
+        late = ticks_diff(now, s.due) + _SLACK_MS  # (early by as much as the loop's slack)
         if late < 0:
             if late < -2 * s.step_ms - 2:  # the clock jumped back: start again
                 s.due = now
+                ls.wait = 0
+            elif -late + _SLACK_MS < ls.wait:
+                ls.wait = -late + _SLACK_MS
             continue
         if not _send(ls, s):
+            ls.wait = 1  # the budget will pay again soon
             return
+        _until(ls, s)
+
+
+def _until(ls, s):
+    # A stream just sent: its next deadline may be the link's first.
+    ms = ticks_diff(s.due, ls.now)
+    if ms < ls.wait:
+        ls.wait = ms if ms > 0 else 0
 
 
 def _send(ls, s):

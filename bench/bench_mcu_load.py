@@ -1,0 +1,235 @@
+"""What the whole vehicle costs the CPU on the emulated boards (boards/qemu_m3.py,
+qemu_m0.py): SYS_STATUS.load under three workloads, the instructions of the loop's parts.
+
+    mcu_load_permille_{idle,pilot,transfer}_{m3,m0}
+        QEMU under -icount shift=3 (8 virtual ns an instruction: a 125 MHz core at one
+        instruction a cycle); the vehicle's own SYS_STATUS.load, averaged over the
+        workload. Every workload is paced in the board's time (its time_boot_ms):
+        idle: the default streams at a 57600-baud budget, a ground station's 1 Hz HEARTBEAT;
+        pilot: idle plus MANUAL_CONTROL at 20 Hz;
+        transfer: idle plus a parameter download, a 100-item mission upload and download.
+    mcu_instr_{poll,ticks_ms,link_poll,tick_<service>,tick_app}_{m3,m0}
+        -icount shift=0 (a virtual ns an instruction): one ep.poll() with nothing due, the
+        emulated clock's ticks_ms() (Python over machine.mem32 here, C on a real board),
+        one link's poll with nothing to read, and one tick of each service and of the
+        application, run whether due or not, timed by the board's timer over many calls.
+"""
+import os
+import sys
+import time
+
+BENCH = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(BENCH)
+for _d in (os.path.join(ROOT, "mcu"), os.path.join(ROOT, "tests")):
+    if _d not in sys.path:
+        sys.path.insert(0, _d)
+
+import firmware  # noqa: E402
+
+ICOUNT_LOAD = ["-icount", "shift=3"]
+ICOUNT_INSTR = ["-icount", "shift=0"]
+BAUD = 57600
+WARMUP_MS = 3000  # board time before the loads count (start-up, the first fit)
+SPAN_MS = 12000  # board time a workload's loads are read over
+TARGETS = {"idle": 20, "pilot": 50, "transfer": 100}  # per mille on the M3
+
+# One tick of each part, on the board, timed by its timer (shift=0: M3's CMSDK timer at
+# 25 MHz counts 40 instructions, M0's nRF51 timer 32 us = 32,000 instructions).
+INSTR = """import gc
+import main
+import board
+from mavstack import qemu
+ep, app = main.build(board, {"options": {}})
+clk = qemu._clock
+PER = 40 if qemu.MODEL == "m3" else 32000
+N = 400 if qemu.MODEL == "m3" else 2000
+def span(a, b):
+    d = (a - b) if qemu.MODEL == "m3" else (b - a)
+    return d % (1000000000 if qemu.MODEL == "m3" else 0x1000000)
+def timed(fn, arg):
+    gc.collect()
+    t = clk.read()
+    for _ in range(N):
+        fn(arg)
+    return span(t, clk.read())
+def nothing(arg):
+    pass
+now = qemu.ticks_ms()
+ep.poll(now)
+ep.poll(now)
+base = timed(nothing, now)
+def out(name, fn, arg):
+    print("instr", name, (timed(fn, arg) - base) * PER // N)
+out("poll", ep.poll, now)
+out("ticks_ms", lambda a: qemu.ticks_ms(), 0)
+out("link_poll", lambda link: link.poll(), ep.links[0])
+for t in ep.tickers:
+    out("tick_" + getattr(t, "NAME", "guard"), t.tick, now)
+if app is not None:
+    out("tick_app", app.tick, now)
+"""
+
+
+class BoardClock:
+    """The board's time_boot_ms, read from its messages and run on between them at the
+    rate it has kept against the host's clock."""
+
+    def __init__(self):
+        self.first = self.last = None  # (host s, board ms)
+
+    def heard(self, board_ms):
+        sample = (time.time(), board_ms)
+        if self.first is None:
+            self.first = sample
+        self.last = sample
+
+    def rate(self):
+        (h0, b0), (h1, b1) = self.first, self.last
+        return (b1 - b0) / (h1 - h0) if h1 > h0 and b1 > b0 else 1000.0
+
+    def now(self):
+        if self.last is None:
+            return None
+        return self.last[1] + (time.time() - self.last[0]) * self.rate()
+
+
+class Workload:
+    """A ground station on the board's MAVLink UART: its HEARTBEAT (and MANUAL_CONTROL)
+    paced in board time from a message hook, SYS_STATUS.load collected with board times."""
+
+    def __init__(self, gcs, pilot=False):
+        self.gcs = gcs
+        self.clock = BoardClock()
+        self.loads = []  # (board ms, per mille)
+        self.pilot = pilot
+        self.next_beat = self.next_stick = None
+        gcs.message_hooks.append(self._hook)
+
+    def _hook(self, _m, msg):
+        t = getattr(msg, "time_boot_ms", None)
+        if t is not None and msg.get_type() != "BAD_DATA":
+            self.clock.heard(t)
+        if msg.get_type() == "SYS_STATUS" and self.clock.last is not None:
+            self.loads.append((self.clock.now(), msg.load))
+        self.pace()
+
+    def pace(self):
+        now = self.clock.now()
+        if now is None:
+            return
+        if self.next_beat is None:
+            self.next_beat = self.next_stick = now
+        if now >= self.next_beat:
+            self.next_beat += 1000
+            self.gcs.mav.heartbeat_send(6, 8, 0, 0, 4)  # a GCS
+        while self.pilot and now >= self.next_stick:
+            self.next_stick += 50
+            self.gcs.mav.manual_control_send(1, 0, 0, 500, 0, 0)
+
+    def run_for(self, ms):
+        """Read and pace for ms of board time."""
+        end = None
+        while True:
+            self.gcs.recv_msg()
+            self.pace()
+            now = self.clock.now()
+            if now is not None:
+                end = end if end is not None else now + ms
+                if now >= end:
+                    return
+            time.sleep(0.002)
+
+    def load(self, since):
+        """The mean of the loads reported after board time since (per mille)."""
+        got = [v for t, v in self.loads if t >= since]
+        if not got:
+            raise RuntimeError("no SYS_STATUS after %d ms of board time" % since)
+        return sum(got) / len(got)
+
+
+def _transfers(w, span_ms):
+    """Parameter download, 100-item upload and download, again and again for span_ms."""
+    from mission_gcs import MissionClient, plan
+
+    gcs = w.gcs
+    client = MissionClient(gcs, timeout=2.0)
+    items = plan(100)
+    start = w.clock.now()
+    rounds = 0
+    while w.clock.now() - start < span_ms:
+        gcs.mav.param_request_list_send(1, 1)
+        got = set()
+        deadline = time.time() + 60
+        while len(got) < 100 and time.time() < deadline:
+            m = gcs.recv_match(type="PARAM_VALUE", blocking=True, timeout=1)
+            if m is not None:
+                got.add(m.param_index)
+        client.upload(items)
+        if len(client.download()) != 100:
+            raise RuntimeError("the mission download did not return 100 items")
+        rounds += 1
+    return start, rounds
+
+
+def load(board, kind):
+    """SYS_STATUS.load (per mille) of the vehicle on this board under this workload."""
+    from mcu_rig import EmulatedBoard
+
+    with EmulatedBoard(board, qemu_args=ICOUNT_LOAD) as b:
+        gcs = b.start_vehicle({"baud_budget": BAUD})
+        w = Workload(gcs, pilot=(kind == "pilot"))
+        w.run_for(WARMUP_MS)
+        if kind == "transfer":
+            start, _rounds = _transfers(w, SPAN_MS)
+            since = start + 1000  # the first report's second was partly idle
+        else:
+            since = w.clock.now() + 1000
+            w.run_for(SPAN_MS)
+        gcs.message_hooks.clear()
+        return round(w.load(since), 1)
+
+
+def instructions(board):
+    """-> {part: instructions} of one call each, on the board under shift=0."""
+    from mcu_rig import EmulatedBoard
+
+    with EmulatedBoard(board, qemu_args=ICOUNT_INSTR) as b:
+        out = b.exec(INSTR, timeout=300)
+    got = {}
+    for line in out.splitlines():
+        words = line.split()
+        if len(words) == 3 and words[0] == "instr":
+            got[words[1]] = int(words[2])
+    return got
+
+
+def run():
+    if firmware.tools_missing():
+        raise RuntimeError("MCU tools missing (make mcu-deps): %s" % firmware.tools_missing())
+    out = {}
+    for board, tag in (("qemu_m3", "m3"), ("qemu_m0", "m0")):
+        for part, n in instructions(board).items():
+            out["mcu_instr_%s_%s" % (part, tag)] = n
+        for kind in ("idle", "pilot", "transfer"):
+            out["mcu_load_permille_%s_%s" % (kind, tag)] = load(board, kind)
+    return out
+
+
+def floors(results):
+    return [("mcu_load_permille_%s_m3 <= %d" % (k, v), results["mcu_load_permille_%s_m3" % k] <= v)
+            for k, v in TARGETS.items()]
+
+
+if __name__ == "__main__":
+    import json
+
+    board = sys.argv[1] if len(sys.argv) > 1 else "qemu_m3"
+    kinds = sys.argv[2:] or ["instr", "idle", "pilot", "transfer"]
+    res = {}
+    for k in kinds:
+        if k == "instr":
+            res.update(instructions(board))
+        else:
+            res[k] = load(board, k)
+        print(k, res, flush=True)
+    print(json.dumps(res, indent=1))
