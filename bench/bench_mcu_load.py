@@ -2,17 +2,17 @@
 qemu_m0.py): SYS_STATUS.load under three workloads, the instructions of the loop's parts.
 
     mcu_load_permille_{idle,pilot,transfer}_{m3,m0}
-        QEMU under -icount shift=3 (8 virtual ns an instruction: a 125 MHz core at one
-        instruction a cycle); the vehicle's own SYS_STATUS.load, averaged over the
-        workload. Every workload is paced in the board's time (its time_boot_ms):
+        -icount shift=3,align=on (8 virtual ns an instruction: 125 MHz at an instruction a
+        cycle, kept in step with the host's clock); the vehicle's SYS_STATUS.load, averaged
+        over the workload, paced in the board's time (SYSTEM_TIME's time_boot_ms):
         idle: the default streams at a 57600-baud budget, a ground station's 1 Hz HEARTBEAT;
         pilot: idle plus MANUAL_CONTROL at 20 Hz;
-        transfer: idle plus a parameter download, a 100-item mission upload and download.
+        transfer: idle plus a parameter download and a 100-item mission upload and
+        download, three times; the loads reported while they ran.
     mcu_instr_{poll,ticks_ms,link_poll,tick_<service>,tick_app}_{m3,m0}
-        -icount shift=0 (a virtual ns an instruction): one ep.poll() with nothing due, the
-        emulated clock's ticks_ms() (Python over machine.mem32 here, C on a real board),
-        one link's poll with nothing to read, and one tick of each service and of the
-        application, run whether due or not, timed by the board's timer over many calls.
+        -icount shift=0 (a virtual ns an instruction), by the board's timer over many
+        calls: one ep.poll() with nothing due, the emulated clock's ticks_ms(), one link's
+        poll with nothing to read, one tick of each service and the application's.
 """
 import os
 import sys
@@ -26,7 +26,7 @@ for _d in (os.path.join(ROOT, "mcu"), os.path.join(ROOT, "tests")):
 
 import firmware  # noqa: E402
 
-ICOUNT_LOAD = ["-icount", "shift=3"]
+ICOUNT_LOAD = ["-icount", "shift=3,align=on"]
 ICOUNT_INSTR = ["-icount", "shift=0"]
 BAUD = 57600
 WARMUP_MS = 3000  # board time before the loads count (start-up, the first fit)
@@ -39,6 +39,7 @@ INSTR = """import gc
 import main
 import board
 from mavstack import qemu
+qemu.UartTransport.write = lambda self, buf, n: n  # (the M0's UART is the REPL's too)
 ep, app = main.build(board, {"options": {}})
 clk = qemu._clock
 PER = 40 if qemu.MODEL == "m3" else 32000
@@ -106,9 +107,8 @@ class Workload:
         gcs.message_hooks.append(self._hook)
 
     def _hook(self, _m, msg):
-        t = getattr(msg, "time_boot_ms", None)
-        if t is not None and msg.get_type() != "BAD_DATA":
-            self.clock.heard(t)
+        if msg.get_type() == "SYSTEM_TIME":  # (telemetry slots carry their writes' times)
+            self.clock.heard(msg.time_boot_ms)
         if msg.get_type() == "SYS_STATUS" and self.clock.last is not None:
             self.loads.append((self.clock.now(), msg.load))
         self.pace()
@@ -139,36 +139,38 @@ class Workload:
                     return
             time.sleep(0.002)
 
-    def load(self, since):
-        """The mean of the loads reported after board time since (per mille)."""
-        got = [v for t, v in self.loads if t >= since]
+    def load(self, since, until):
+        """The mean of the loads reported between these board times (per mille)."""
+        got = [v for t, v in self.loads if since <= t <= until]
         if not got:
             raise RuntimeError("no SYS_STATUS after %d ms of board time" % since)
         return sum(got) / len(got)
 
 
-def _transfers(w, span_ms):
-    """Parameter download, 100-item upload and download, again and again for span_ms."""
+def _transfers(w, rounds=3):
+    """A parameter download, a 100-item mission upload and download, `rounds` times ->
+    the board times (ms) the transfers started and ended."""
     from mission_gcs import MissionClient, plan
 
     gcs = w.gcs
     client = MissionClient(gcs, timeout=2.0)
     items = plan(100)
     start = w.clock.now()
-    rounds = 0
-    while w.clock.now() - start < span_ms:
+    for _ in range(rounds):
         gcs.mav.param_request_list_send(1, 1)
         got = set()
-        deadline = time.time() + 60
+        deadline = time.time() + 30
         while len(got) < 100 and time.time() < deadline:
             m = gcs.recv_match(type="PARAM_VALUE", blocking=True, timeout=1)
             if m is not None:
                 got.add(m.param_index)
-        client.upload(items)
-        if len(client.download()) != 100:
+        if len(got) < 100:
+            raise RuntimeError("the parameter download gave %d of 100" % len(got))
+        if client.upload(items) != 0:
+            raise RuntimeError("the mission upload failed")
+        if len(client.download() or ()) != 100:
             raise RuntimeError("the mission download did not return 100 items")
-        rounds += 1
-    return start, rounds
+    return start, w.clock.now()
 
 
 def load(board, kind):
@@ -180,13 +182,18 @@ def load(board, kind):
         w = Workload(gcs, pilot=(kind == "pilot"))
         w.run_for(WARMUP_MS)
         if kind == "transfer":
-            start, _rounds = _transfers(w, SPAN_MS)
-            since = start + 1000  # the first report's second was partly idle
+            start, end = _transfers(w)
+            w.run_for(1500)  # the report of the transfers' last second
+            # Reports whose second lies within the transfers (the first is partly idle).
+            since, until = start + 1000, end + 1000
         else:
             since = w.clock.now() + 1000
             w.run_for(SPAN_MS)
+            until = w.clock.now()
         gcs.message_hooks.clear()
-        return round(w.load(since), 1)
+        if os.environ.get("LOADS"):
+            print(kind, since, until, [(round(t), v) for t, v in w.loads])
+        return round(w.load(since, until), 1)
 
 
 def instructions(board):

@@ -14,7 +14,6 @@ import sys
 from mavstack.compat import ticks_ms, ticks_diff
 from mavstack.endpoint import Endpoint, Reboot, Shutdown
 from mavstack.faults import APP
-from mavstack.sleeper import Sleeper
 from mavstack.services import compose
 from mavstack.storage import Storage
 from mavstack.transport import open_transport
@@ -133,6 +132,8 @@ def _check_ram(ep, board):
 def run(ep, app=None, dog=None):
     """Poll, then sleep until the next work is due or a byte arrives (sleeper.py)."""
     # Sleeping through status.idle lets it measure the loop's load for SYS_STATUS.
+    from mavstack.sleeper import Sleeper  # (here: the vehicle is built, its garbage gone)
+
     status = ep.services.get("status")
     sleep = Sleeper(ep.links).sleep
     faults = ep.faults

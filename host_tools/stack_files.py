@@ -12,7 +12,7 @@ import os
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 FIRMWARE = os.path.join(ROOT, "firmware")
 BOARDS = os.path.join(ROOT, "boards")
-NATIVE_MODULES = ("bytes_viper.py", "sha256_viper.py")  # hold @micropython.viper code
+NATIVE_MODULES = ("bytes_viper.py", "sha256_viper.py", "qemu_viper.py")  # hold @micropython.viper code
 # compat.py's stand-ins for what a port lacks, which its imports do not bring: CPython's
 # (never on a board) and the qemu port's clock (there when the profile imports it).
 STAND_INS = ("mavstack.compat_cpython", "mavstack.qemu")

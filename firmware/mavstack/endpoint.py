@@ -22,6 +22,8 @@ class Shutdown(Exception):
 
 WAIT_MAX_MS = const(100)  # the longest poll() lets the loop sleep (the watchdog is fed between)
 _FAR_MS = const(60000)  # no ticker asks to wait this long
+_ALL = const(-2)  # a frame wakes every ticker
+_NONE = const(-1)  # ... none
 _SLACK_MS = const(10)  # a ticker due this soon runs with those due now (streams.md)
 
 # Raised as made here, once: making an exception allocates, and the heap may be locked.
@@ -39,6 +41,8 @@ class Endpoint:
         self.links = []
         self.now = self._born = ticks_ms()
         self._handlers = {}  # msgid -> (handler(link, payload), ...)
+        self._wakes = {}  # msgid -> the ticker its handlers' frames wake (_ALL, _NONE)
+        self._owner = _ALL  # the ticker of the service attaching now
         self.tickers = []  # services with periodic work, in the order they were added
         self._due = []  # ticks_ms at which each ticker next has work
         self._next = self.now  # ... the first of them
@@ -79,7 +83,11 @@ class Endpoint:
         self.services[name or service.NAME] = service
         if getattr(service, "CLOCK", True):
             self.clock  # made now, at start-up, rather than on a hot path
+        # The frames it registers for wake its tick alone (WAKE_ALL: every tick; see poll).
+        self._owner = _ALL if getattr(service, "WAKE_ALL", False) else (
+            len(self.tickers) if hasattr(service, "tick") else _NONE)
         service.attach(self)
+        self._owner = _ALL  # (a handler registered later, by the application)
         if hasattr(service, "tick"):
             self.tickers.append(service)
             self._due.append(self.now)
@@ -91,6 +99,8 @@ class Endpoint:
             return False
         # A tuple: one small object per message id (a list takes two).
         self._handlers[msgid] = self._handlers.get(msgid, ()) + (handler,)
+        was = self._wakes.get(msgid, _NONE)
+        self._wakes[msgid] = self._owner if was in (_NONE, self._owner) else (was if self._owner == _NONE else _ALL)
         return True
 
     def setting(self, name, default=None):
@@ -132,9 +142,9 @@ class Endpoint:
     def dispatch(self, link, msgid, payload):
         """Hand a frame to its handlers; one that raises is a fault (counted, reported)
         and the frame goes on to the others."""
-        self.heard = True
         handlers = self._handlers.get(msgid)
         if handlers is not None:
+            self._wake_for(msgid)
             self.faults.payload = payload
             i = 0  # by index: see docs/design.md
             while i < len(handlers):
@@ -143,10 +153,29 @@ class Endpoint:
                     self.faults.count(MESSAGE, msgid)
                 i += 1
 
-    def wake(self):
-        """Every ticker runs on the next pass, at once (work made outside a frame)."""
-        self.heard = True
+    def _wake_for(self, msgid):
+        # A frame with handlers: their service's tick runs on this pass (it may have
+        # been left work), or every tick.
+        w = self._wakes.get(msgid, _ALL)
+        if w == _ALL:
+            self.heard = True
+        elif w >= 0:
+            self._due[w] = self.now
+            self._next = self.now
+
+    def wake(self, service=None):
+        """Ticks run on the next pass, at once: the service's, or every one (work made
+        outside a frame for them: an application's call, another service's)."""
         self.wait_ms = 0
+        if service is None:
+            self.heard = True
+            return
+        i = 0
+        while i < len(self.tickers):
+            if self.tickers[i] is service:
+                self._due[i] = self.now
+                self._next = self.now
+            i += 1
 
     def poll(self, now=None):
         """One pass of the main loop: read every link, then run the service work that is

@@ -23,6 +23,7 @@ _MASK = const(0x3FFFFFFF)  # MicroPython's ticks period: 2^30
 _HALF = const(0x20000000)
 _PERIOD_M3 = const(1000000000)  # CMSDK timer counts a wrap: 40 s at 25 MHz, below 2^30
 _KHZ_M3 = const(25000)  # its counts a ms
+_GAP_US = const(1000)  # a receiving UART quiet this long: what came is whole (wait_ms)
 _PERIOD_M0 = const(0x1000000)  # nRF51 timer in 24-bit mode: a wrap is 537 s of 32 us counts
 
 # SCB CPUID (the same address on every Cortex-M): part number 0xC20 is a Cortex-M0.
@@ -45,6 +46,18 @@ else:
     _mem32[_TIMER] = 1  # TASKS_START
 
 
+# The M3's clock and UART in viper where the firmware has the native emitter
+# (qemu_viper.py); the Python below is the fallback, with the same results.
+VIPER = False
+if MODEL == "m3":
+    try:
+        from .qemu_viper import clock_update, uart_drain, uart_write, ring_take
+
+        VIPER = True
+    except ImportError:
+        pass
+
+
 class _Clock:
     """Milliseconds since boot, wrapped like time.ticks_ms(), from the counter's deltas."""
 
@@ -53,11 +66,24 @@ class _Clock:
         self.sub = 0  # counts (M3) or microseconds (M0) not yet a whole ms
         self.ms = 0
         self.us = 0
+        if VIPER:
+            from array import array
+
+            self._st = array("i", (self.last, 0, 0, 0, 0))  # clock_update's state
 
     if MODEL == "m3":
 
         def read(self):
             return _mem32[_VALUE]
+
+    if VIPER:
+
+        def update(self):
+            self.ms = clock_update(self._st)
+            self.us = self._st[3]
+            return self.ms
+
+    elif MODEL == "m3":
 
         def update(self):
             v = _mem32[_VALUE]
@@ -122,6 +148,19 @@ def ticks_diff(a, b):
     return d
 
 
+if VIPER:  # the same, a call cheaper (qemu_viper.py)
+    from .qemu_viper import ticks_add, ticks_diff  # noqa: F811
+
+    _ST = _clock._st
+
+    def ticks_ms():  # noqa: F811
+        return clock_update(_ST)
+
+    def ticks_us():  # noqa: F811
+        clock_update(_ST)
+        return _ST[3]
+
+
 def sleep_ms(ms):
     end = ticks_add(_clock.update(), ms)
     while True:
@@ -132,14 +171,18 @@ def sleep_ms(ms):
 
 
 def wait_ms(ms):
-    """sleep_ms that ends as soon as a byte is in a UART's ring (the loop's sleep)."""
-    end = ticks_add(_clock.update(), ms)
+    """sleep_ms that ends early once bytes came into a UART's ring and the line has
+    been quiet for _GAP_US since, as a receive-idle interrupt would tell: a frame comes
+    in whole, not a pass a byte (the loop's sleep, sleeper.py)."""
+    end = ticks_add(ticks_ms(), ms)
+    heard = -1  # ticks_us() when bytes last came, -1: none yet
     while True:
         for u in UARTS:
-            u.drain()
-            if u._count:
-                return
-        if ticks_diff(end, _clock.update()) <= 0:
+            if u.drain():
+                heard = ticks_us()
+        if heard >= 0 and ticks_diff(ticks_us(), heard) >= _GAP_US:
+            return
+        if ticks_diff(end, ticks_ms()) <= 0:
             return
 
 
@@ -155,9 +198,8 @@ else:
     _TXD = 0x4000251C
 
 
-def _take(ring, h, dst, n):
+def _take(ring, size, h, dst, n):
     """dst[0:n] = n bytes of ring from h (wrapping) -> the new h."""
-    size = len(ring)
     for i in range(n):
         dst[i] = ring[h]
         h += 1
@@ -166,8 +208,13 @@ def _take(ring, h, dst, n):
     return h
 
 
-def _put(ring, i, b):
-    ring[i % len(ring)] = b
+def _tx_room():
+    """Wait for the M3 UART's TXFULL to clear (it does as soon as QEMU's pty takes the
+    byte) -> False when it does not."""
+    for _ in range(10000):
+        if not _mem32[_UART_STATE] & 1:
+            return True
+    return False
 
 
 class UartTransport:
@@ -188,33 +235,60 @@ class UartTransport:
             _mem32[0x40005008] = 3  # CTRL: TX and RX enabled
         UARTS.append(self)
 
-    if MODEL == "m3":
+    if VIPER:
 
         def drain(self):
-            # Stop when the ring is full: the rest waits in the UART (QEMU then stops
-            # reading the pty), as hardware flow control would hold it.
-            while self._count < len(self._ring) and _mem32[_UART_STATE] & 2:  # RXFULL
-                _put(self._ring, self._head + self._count, _mem32[_UART])
-                self._count += 1
+            n = uart_drain(self._ring, len(self._ring), self._head, self._count)
+            return self._took(n)
 
-        def _put(self, b):
-            for _ in range(10000):  # TXFULL clears as soon as QEMU's pty takes the byte
-                if not _mem32[_UART_STATE] & 1:
-                    _mem32[_UART] = b
-                    return True
-            return False
+        def write(self, buf, n):
+            return uart_write(buf, n)
+
+    elif MODEL == "m3":
+
+        def drain(self):
+            """Bytes from the UART into the ring -> how many. Stops when the ring is
+            full: the rest waits in the UART (QEMU then stops reading the pty), as
+            hardware flow control would hold it."""
+            n = self._count
+            while n < len(self._ring) and _mem32[_UART_STATE] & 2:  # RXFULL
+                self._put(n, _mem32[_UART])
+                n += 1
+            return self._took(n)
+
+        def write(self, buf, n):
+            i = 0
+            while i < n:
+                if _mem32[_UART_STATE] & 1 and not _tx_room():  # TXFULL
+                    return i
+                _mem32[_UART] = buf[i]
+                i += 1
+            return n
 
     else:
 
         def drain(self):
-            while self._count < len(self._ring) and _mem32[_RXDRDY]:
+            n = self._count
+            while n < len(self._ring) and _mem32[_RXDRDY]:
                 _mem32[_RXDRDY] = 0
-                _put(self._ring, self._head + self._count, _mem32[_RXD])
-                self._count += 1
+                self._put(n, _mem32[_RXD])
+                n += 1
+            return self._took(n)
 
-        def _put(self, b):
-            _mem32[_TXD] = b  # QEMU's nRF51 UART sends at once
-            return True
+        def write(self, buf, n):
+            for i in range(n):
+                _mem32[_TXD] = buf[i]  # QEMU's nRF51 UART sends at once
+            return n
+
+    def _put(self, n, b):
+        # The ring's byte n from its head.
+        i = self._head + n
+        self._ring[i if i < len(self._ring) else i - len(self._ring)] = b
+
+    def _took(self, n):
+        k = n - self._count
+        self._count = n
+        return k
 
     def readinto(self, buf, limit=0):
         # (small functions: docs/design.md)
@@ -224,14 +298,8 @@ class UartTransport:
             n = len(buf)
         if limit and n > limit:
             n = limit
-        self._head = _take(self._ring, self._head, buf, n)
+        self._head = (ring_take if VIPER else _take)(self._ring, len(self._ring), self._head, buf, n)
         self._count -= n
-        return n
-
-    def write(self, buf, n):
-        for i in range(n):
-            if not self._put(buf[i]):
-                return i
         return n
 
     def close(self):

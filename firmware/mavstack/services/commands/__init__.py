@@ -50,6 +50,7 @@ _REPLY_ROOM = const(64)  # ... with room for the message that follows it, if any
 
 class Commands:
     NAME = "commands"
+    WAKE_ALL = True  # a command is other services' work: its frames wake every tick
 
     def __init__(self):
         self.cmd = Command(self)

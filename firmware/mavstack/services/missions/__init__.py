@@ -149,12 +149,21 @@ class Missions:
     # --- periodic work ------------------------------------------------------------
     def tick(self, now):
         t = self.transfer
+        ms = _IDLE_MS  # to the next retry (an upload), 1 while pushing
         if t.state != IDLE and ticks_diff(now, t.progress) >= self.timeout_ms:
             t.cancel()  # stale: the ground station went away, or only starts over
         elif t.state == UPLOAD:
-            t.tick(now)
+            ms = t.tick(now)
         elif t.state == PUSH:
             self.rare.push(t, now)
+            ms = 1
+        self._current(now)
+        if t.state != IDLE:  # the retry, or the transfer gone stale
+            stale = self.timeout_ms - ticks_diff(now, t.progress) + 1
+            return ms if ms < stale else stale
+        return ticks_diff(self._current_due, now) if self.ep.services.get("streams") is None else _IDLE_MS
+
+    def _current(self, now):
         # On change; and once a second unless the streams service schedules it (it is
         # in the default streams there, and a ground station may change its rate).
         if self._current_changed or (
@@ -164,9 +173,6 @@ class Missions:
                 self.send_current(link)
             self._current_changed = False
             self._current_due = ticks_add(now, _CURRENT_PERIOD_MS)
-        if t.state != IDLE:
-            return 1  # a transfer's timeouts
-        return ticks_diff(self._current_due, now) if self.ep.services.get("streams") is None else _IDLE_MS
 
     def current_changed(self):
         """Send MISSION_CURRENT on the next pass (the runner calls this)."""

@@ -218,13 +218,13 @@ class Upload(Transfer):
 
     # --- time ---------------------------------------------------------------------
     def tick(self, now):
-        """An upload under way: ask again for what is overdue."""
+        """An upload under way: ask again for what is overdue -> ms to the next look."""
         if self.top == self.seq and not self.strict:
             self._fill(now)  # nothing asked yet: the link had no room
-            return
+            return 1
         if ticks_diff(now, self.heard) < self.rto or not (
                 self.strict or ticks_diff(now, self.asked[self.seq % self.window]) >= self.rto):
-            return
+            return self._next_look(now)
         if self.tries < self.backoffs:  # back off
             self.tries += 1
             self.rto = self.rto * 2 if self.rto * 2 < self.rto_max else self.rto_max
@@ -234,7 +234,7 @@ class Upload(Transfer):
             # time now, each for the item after the last one it sent.
             self.strict = True
             self._ask_next(now)
-            return
+            return self._next_look(now)
         # Ask again for each missing item asked a while ago (rto / 4: the first missing
         # one, and those asked with it).
         seq = self.seq
@@ -243,6 +243,16 @@ class Upload(Transfer):
                     and ticks_diff(now, self.asked[seq % self.window]) >= self.rto >> 2):
                 self._again(seq, now)
             seq += 1
+        return self._next_look(now)
+
+    def _next_look(self, now):
+        # Items not yet asked for wait on the budget: soon. Else when the retry is due.
+        if self.top < self.end and self.top - self.seq < self.window:
+            return 1
+        since = ticks_diff(now, self.heard)
+        if not self.strict and ticks_diff(now, self.asked[self.seq % self.window]) < since:
+            since = ticks_diff(now, self.asked[self.seq % self.window])
+        return self.rto - since if since < self.rto else 1
 
     def _ask_next(self, now):
         """Serving in order: ask for the item after the last one the peer sent, or for

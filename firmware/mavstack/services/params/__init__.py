@@ -199,6 +199,7 @@ class Params(ParamStore, LinkEncodings, ParamTable):
         if not want[i]:
             want[i] = 1
             self._pending[link.index] += 1
+            self.ep.wake(self)
 
     # --- protocol --------------------------------------------------------------------
     def _on_list(self, link, p):
