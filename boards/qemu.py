@@ -1,6 +1,6 @@
 """What the two emulated boards (qemu_m3, qemu_m0) share: the full service set, the
-unix vehicle's 100 parameters, storage in a RAM region outside the GC heap, the heap
-locked once the vehicle is up, and a stand-in application.
+unix vehicle's 100 parameters (a block read in place), storage in a RAM region outside
+the GC heap, the heap locked once the vehicle is up, and a stand-in application.
 
 The application is a vehicle standing still on the ground with working sensors: it
 writes ATTITUDE, GLOBAL_POSITION_INT, GPS_RAW_INT and VFR_HUD slots from values made
@@ -9,7 +9,6 @@ whose REPL keeps UART 0, it also stops the vehicle on a Ctrl-C there, as a port'
 interrupt would (the qemu port has none): that is how `mavctl flash` gets the REPL back.
 """
 from mavstack.compat import ticks_add, ticks_diff
-from mavstack.services.params import UINT32
 
 DIALECT = "common"
 SYSID = 1
@@ -40,10 +39,9 @@ DEFAULT_STREAMS = (  # ten streams
     (242, 0.2),  # HOME_POSITION
 )
 
-from unix_params import PARAMS as _UNIX  # noqa: E402
-
-# The unix vehicle's table, with a uint32 that can hold values of 2^30 and more.
-PARAMS = tuple(p for p in _UNIX if p[0] != "BRD_SERIAL_NUM") + (("BRD_SERIAL_NUM", UINT32, 0),)
+# The unix vehicle's table with a uint32 BRD_SERIAL_NUM (qemu_params.py), as one block
+# read in place: frozen, it stays in flash.
+from qemu_params_block import PARAMS  # noqa: E402
 
 
 HEAP = [0, 0]  # heap in use and free (bytes) when the vehicle was shut down (bench_mcu.py)

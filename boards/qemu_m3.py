@@ -3,7 +3,7 @@ emitter, so the viper kernels), 4 MB of RAM. REPL on UART 0, MAVLink on UART 1 (
 second -serial). Built and run by mcu/firmware.py; settings shared with qemu_m0 in
 boards/qemu.py."""
 NAME = "qemu_m3"
-BOARD_MODULES = ("qemu", "unix_params")  # frozen with the profile (firmware/manifest.py)
+BOARD_MODULES = ("qemu", "qemu_params_block")  # frozen with the profile (firmware/manifest.py)
 STORAGE = "ram"
 STORAGE_REGION = (0x00200000, 0x80000)  # 512 KB of RAM above the firmware's, below the stack
 # The filesystem of the firmware `mavctl flash` writes to (mcu/boot_fs.py mounts it at /flash)
