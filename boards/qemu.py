@@ -38,6 +38,10 @@ DEFAULT_STREAMS = (  # ten streams
     (245, 0.5),  # EXTENDED_SYS_STATE
     (242, 0.2),  # HOME_POSITION
 )
+# Telemetry slots for what the application writes and the default streams send
+# (GPS_RAW_INT, ATTITUDE, GLOBAL_POSITION_INT, VFR_HUD, BATTERY_STATUS, EXTENDED_SYS_STATE):
+# the other writers write nowhere.
+TELEMETRY = (24, 30, 33, 74, 147, 245)
 
 # The unix vehicle's table with a uint32 BRD_SERIAL_NUM (qemu_params.py), as one block
 # read in place: frozen, it stays in flash.
