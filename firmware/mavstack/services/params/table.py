@@ -74,7 +74,8 @@ class ParamTable:
         size = _HEADER + 2
         for i in range(n):
             size += 6 + self._lens[i]
-        self._image = bytearray(size)  # pack() writes the file here, _load reads it here
+        self.size = size  # of the file image
+        self._image = None  # image(): where pack() writes the file, made on first use
         self.adopt(self._defaults)
 
     def find(self, src, o, n):
@@ -234,16 +235,28 @@ class ParamTable:
         return self.changed
 
     # --- file image --------------------------------------------------------------------
-    def pack(self):
+    def pack(self, img=None, at=0):
         """The values as a file: header, (name, type, value) records, crc16. Written
-        whole into one buffer (the same each time: send it before the next pack)."""
-        img = self._image
-        _head(img, self.count)
-        o = _HEADER
+        whole into img from at (a storage's memory: in place), else into one buffer (the
+        same each time: send it before the next pack) -> img."""
+        if img is None:
+            img = self.image()
+        _head(img, at, self.count)
+        _seal(img, at, self._pack_all(img, at + _HEADER))
+        return img
+
+    def _pack_all(self, img, o):
+        """The records into img from o -> where they end (small frames: docs/design.md)."""
         for i in range(self.count):
             o = self._pack(img, o, i)
-        _seal(img, o)
-        return img
+        return o
+
+    def image(self):
+        """The file image's buffer, made on first use (a board that saves with the heap
+        locked makes it at start-up, or writes its storage in place: store.py)."""
+        if self._image is None:
+            self._image = bytearray(self.size)
+        return self._image
 
     def _pack(self, img, o, i):
         n = self._lens[i]
@@ -254,26 +267,26 @@ class ParamTable:
         copy4(img, o + 1, self._values, 4 * i)
         return o + 5
 
-    def unpack(self, data, n=-1):
-        """Values from a file image data[0:n] (n < 0: all of data) into self._loaded,
-        defaults where it has none -> how many of its records no longer fit (type
-        changed, out of range), or -1 if it is corrupt."""
-        end = (len(data) if n < 0 else n) - 2
-        if end < _HEADER or not _is_image(data):
+    def unpack(self, data, n=-1, at=0):
+        """Values from a file image data[at:at+n] (n < 0: to the end of data) into
+        self._loaded, defaults where it has none -> how many of its records no longer fit
+        (type changed, out of range), or -1 if it is corrupt."""
+        end = at + (len(data) - at if n < 0 else n) - 2
+        if end < at + _HEADER or not _sound(data, at, end):
             return -1
-        if crc16(data, 0, end, 0xFFFF) != u16(data, end):
-            return -1
-        move(self._loaded, 0, self._defaults, 0, len(self._loaded))
-        return self._records(data, end)
+        return self._records(data, at + _HEADER, end)
 
-    def _records(self, data, end):
+    def _records(self, data, o, end):
+        self._reset_loaded()
         self._bad = 0
-        o = _HEADER
-        n = u16(data, 6)
+        n = u16(data, o - 2)  # the header's count
         while n and o >= 0:
             o = self._unpack(data, o, end)
             n -= 1
         return self._bad if o == end else -1
+
+    def _reset_loaded(self):
+        move(self._loaded, 0, self._defaults, 0, len(self._loaded))
 
     def _unpack(self, data, o, end):
         """Take the record at data[o:] -> where the next one starts, -1 if corrupt."""
@@ -295,18 +308,23 @@ class ParamTable:
             self._bad += 1
 
 
-def _head(img, count):
-    move(img, 0, _MAGIC, 0, 4)
-    img[4] = _FILE_VERSION
-    img[5] = 0
-    put16(img, 6, count)
+def _head(img, at, count):
+    move(img, at, _MAGIC, 0, 4)
+    img[at + 4] = _FILE_VERSION
+    img[at + 5] = 0
+    put16(img, at + 6, count)
 
 
-def _seal(img, end):
-    """The crc16 of img[0:end] after it."""
-    put16(img, end, crc16(img, 0, end, 0xFFFF))
+def _seal(img, at, end):
+    """The crc16 of img[at:end] after it."""
+    put16(img, end, crc16(img, at, end, 0xFFFF))
 
 
-def _is_image(data):
-    return (data[0] == _MAGIC[0] and data[1] == _MAGIC[1] and data[2] == _MAGIC[2]
-            and data[3] == _MAGIC[3] and data[4] == _FILE_VERSION)
+def _sound(data, at, end):
+    """data[at:end] is a file image whose crc16 follows it."""
+    return _is_image(data, at) and crc16(data, at, end, 0xFFFF) == u16(data, end)
+
+
+def _is_image(data, at):
+    return (data[at] == _MAGIC[0] and data[at + 1] == _MAGIC[1] and data[at + 2] == _MAGIC[2]
+            and data[at + 3] == _MAGIC[3] and data[at + 4] == _FILE_VERSION)
