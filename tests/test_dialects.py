@@ -216,6 +216,8 @@ def test_restricted_dialect(tmp_path):
     )
     assert r.returncode == 0, r.stderr
     assert r.stdout.splitlines() == ["[0, 22] [0, 22] [0, 22]", "False 22 2"]
+    # A few messages: FMT stays a dict (less heap than IdTable's code would take).
+    assert "FMT = {" in out.read_text() and "IdTable" not in out.read_text()
 
 
 def test_select_by_id_or_name():
