@@ -165,9 +165,9 @@ class UartTransport:
     as the pty): the baud rate a real radio link would have, / 10 for 8N1.
     """
 
-    rx_chunk = 256  # what the link reads at a time (link.py): a frame or so, the ring holds more
+    rx_chunk = 128  # what the link reads at a time (link.py); the ring holds more
 
-    def __init__(self, baud=57600, ring=512):
+    def __init__(self, baud=57600, ring=256):
         self.bytes_per_s = baud // 10
         self.name = "uart-" + MODEL
         self._ring = bytearray(ring)
