@@ -70,9 +70,11 @@ bench: setup
 	$(PY) bench/run.py
 
 # Everything generated and committed (a test fails when one is stale): the dialect modules,
-# docs/seed-coverage.md and package.json (what `mpremote mip install` takes).
+# the boards' parameter blocks, docs/seed-coverage.md and package.json (what `mpremote mip
+# install` takes).
 dialects: setup
 	$(PY) host_tools/mavgen.py --all
+	$(PY) host_tools/paramgen.py
 	$(PY) host_tools/seed_coverage.py
 	$(PY) host_tools/mip_package.py
 

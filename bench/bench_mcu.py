@@ -20,8 +20,8 @@ sys.path.insert(0, os.path.join(ROOT, "tests"))
 import firmware  # noqa: E402
 
 PY = os.path.join(ROOT, ".venv", "bin", "python")
-FLOOR_KB = 96
-TARGET_KB = 64
+FLOOR_KB = 60
+TARGET_KB = 48
 
 
 def _passes(board, heap_kb):

@@ -2,7 +2,7 @@
 (stack frozen) builds the vehicle step by step as main.build does, collecting and
 reading gc.mem_alloc() after each; a part is what its step left held.
 
-    heap_kb_<part>_m3/_m0   board (the profile's import: its PARAMS table, module dicts),
+    heap_kb_<part>_m3/_m0   board (the profile's import: module dicts; its PARAMS block stays in flash),
                             dialect, endpoint, storage, links, guard (the crash-loop
                             guard, on a board with a watchdog), each service of SERVICES
                             (its modules' globals and its objects), application

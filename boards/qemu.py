@@ -1,6 +1,6 @@
 """What the two emulated boards (qemu_m3, qemu_m0) share: the full service set, the
-unix vehicle's 100 parameters, storage in a RAM region outside the GC heap, the heap
-locked once the vehicle is up, and a stand-in application.
+unix vehicle's 100 parameters (a block read in place), storage in a RAM region outside
+the GC heap, the heap locked once the vehicle is up, and a stand-in application.
 
 The application is a vehicle standing still on the ground with working sensors: it
 writes ATTITUDE, GLOBAL_POSITION_INT, GPS_RAW_INT and VFR_HUD slots from values made
@@ -9,7 +9,6 @@ whose REPL keeps UART 0, it also stops the vehicle on a Ctrl-C there, as a port'
 interrupt would (the qemu port has none): that is how `mavctl flash` gets the REPL back.
 """
 from mavstack.compat import ticks_add, ticks_diff
-from mavstack.services.params import UINT32
 
 DIALECT = "common"
 SYSID = 1
@@ -39,11 +38,14 @@ DEFAULT_STREAMS = (  # ten streams
     (245, 0.5),  # EXTENDED_SYS_STATE
     (242, 0.2),  # HOME_POSITION
 )
+# Telemetry slots for what the application writes and the default streams send
+# (GPS_RAW_INT, ATTITUDE, GLOBAL_POSITION_INT, VFR_HUD, BATTERY_STATUS, EXTENDED_SYS_STATE):
+# the other writers write nowhere.
+TELEMETRY = (24, 30, 33, 74, 147, 245)
 
-from unix_params import PARAMS as _UNIX  # noqa: E402
-
-# The unix vehicle's table, with a uint32 that can hold values of 2^30 and more.
-PARAMS = tuple(p for p in _UNIX if p[0] != "BRD_SERIAL_NUM") + (("BRD_SERIAL_NUM", UINT32, 0),)
+# The unix vehicle's table with a uint32 BRD_SERIAL_NUM (qemu_params.py), as one block
+# read in place: frozen, it stays in flash.
+from qemu_params_block import PARAMS  # noqa: E402
 
 
 _SENSOR_MS = 250  # StandingVehicle's sensors: how often it writes its slots

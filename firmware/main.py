@@ -209,30 +209,35 @@ def main(argv):
     opts = parse_args(argv)
     board = load_board(opts["board"])
     dog = watchdog(board, opts)  # first: whatever follows may hang
-    while True:
-        ep, app = build(board, opts, dog)
-        try:
-            run(ep, app, dog)
-        except Reboot:
-            # A board resets in board.reset(); the unix vehicle (and a board without
-            # reset()) restarts in place, after letting the old vehicle go: a small heap
-            # holds one vehicle, not two. The watchdog runs on.
-            stop(ep)
-            ep.close()
-            if hasattr(board, "reset"):
-                board.reset()
-            ep = app = None
-            gc.collect()
-            continue
-        except (KeyboardInterrupt, Shutdown):
-            pass
+    while _session(board, opts, dog):
+        # A reboot in place: the old vehicle went with _session's frame (a small heap holds
+        # one vehicle, not two; the collector scans the live frames, where a stale slot
+        # would have kept it). The watchdog runs on.
+        gc.collect()
+
+
+def _session(board, opts, dog):
+    """Build and run one vehicle -> True to start another in its place."""
+    ep, app = build(board, opts, dog)
+    try:
+        run(ep, app, dog)
+    except Reboot:
+        # A board resets in board.reset(); the unix vehicle (and a board without
+        # reset()) restarts in place.
         stop(ep)
         ep.close()
-        if dog is not None and hasattr(dog, "stop"):  # back to the REPL, or out
-            dog.stop()
-        elif dog is not None:
-            print("mavstack: the watchdog runs on (machine.WDT cannot be stopped)")
-        return
+        if hasattr(board, "reset"):
+            board.reset()
+        return True
+    except (KeyboardInterrupt, Shutdown):
+        pass
+    stop(ep)
+    ep.close()
+    if dog is not None and hasattr(dog, "stop"):  # back to the REPL, or out
+        dog.stop()
+    elif dog is not None:
+        print("mavstack: the watchdog runs on (machine.WDT cannot be stopped)")
+    return False
 
 
 def stop(ep):

@@ -48,8 +48,10 @@ for _rel in stack_files.stack_modules(_services, _settings.get("DIALECT", "commo
                                       options.native, options.meta):
     module(_rel, base_path=_root, opt=options.opt)
 
-# `import board` finds the profile, as on a board where flash copies it as board.py.
+# `import board` finds the profile, as on a board where flash copies it as board.py: the
+# profile itself under that name too (not a module importing it: its globals, in the
+# heap, would be there twice).
 _alias = tempfile.mkdtemp(prefix="mavstack-board-")
-with open(os.path.join(_alias, "board.py"), "w") as _f:
-    _f.write("from %s import *  # noqa: F401,F403 (frozen by firmware/manifest.py)\n" % options.board)
+with open(_profile) as _src, open(os.path.join(_alias, "board.py"), "w") as _f:
+    _f.write(_src.read())
 module("board.py", base_path=_alias)

@@ -241,6 +241,11 @@ def select(messages, wanted):
     return [m for m in messages if m.id in keep]
 
 
+# FMT as an IdTable (constant tuples: flash when frozen) from this many messages; a
+# dialect of fewer (--messages) keeps a dict, which costs less than IdTable's code.
+ID_TABLE_MIN = 64
+
+
 def render_runtime(messages, name, source_label):
     """The runtime module: only the per-id tables the stack reads on the board."""
     msgs = sorted(messages, key=lambda m: m.id)
@@ -254,10 +259,18 @@ def render_runtime(messages, name, source_label):
         out.append("    %d: 0x%06x," % (m.id, m.crc_extra | m.len1 << 8 | m.len2 << 16))
     out.append("}")
     out.append("# id -> struct format of the full MAVLink 2 payload (wire order, extensions last)")
-    out.append("FMT = {")
+    if len(msgs) < ID_TABLE_MIN:
+        out += ["FMT = {"] + ["    %d: %r," % (m.id, m.fmt) for m in msgs] + ["}"]
+        return "\n".join(out) + "\n"
+    # Looked up at start-up only: two constant tuples (flash, when frozen), not a dict.
+    out.insert(1, "from mavstack.dialects.table import IdTable\n")
+    out.append("FMT = IdTable((")
+    for k in range(0, len(msgs), 12):
+        out.append("    %s," % ", ".join(str(m.id) for m in msgs[k : k + 12]))
+    out.append("), (")
     for m in msgs:
-        out.append("    %d: %r," % (m.id, m.fmt))
-    out.append("}")
+        out.append("    %r," % m.fmt)
+    out.append("))")
     return "\n".join(out) + "\n"
 
 

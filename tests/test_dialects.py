@@ -92,7 +92,14 @@ def test_seed_dialect_is_the_2012_message_set():
 def test_runtime_module_holds_only_the_tables():
     for name in DIALECTS:
         mod = import_file("rt_" + name, DIALECTS[name][1])
-        assert sorted(k for k in vars(mod) if not k.startswith("__")) == ["CRC_LEN", "FMT"]
+        assert sorted(k for k in vars(mod) if not k.startswith("__")) == ["CRC_LEN", "FMT", "IdTable"]
+        # FMT, read at start-up only: constant tuples (flash when frozen) read like a dict
+        assert isinstance(mod.CRC_LEN, dict) and not isinstance(mod.FMT, dict)
+        assert sorted(mod.FMT) == sorted(mod.CRC_LEN) == [k for k, _ in mod.FMT.items()]
+        assert all(mod.FMT[k] == mod.FMT.get(k) and k in mod.FMT for k in mod.CRC_LEN)
+        assert 0x1000000 not in mod.FMT and mod.FMT.get(-1, "none") == "none"
+        with pytest.raises(KeyError):
+            mod.FMT[0x1000000]
 
 
 @pytest.mark.parametrize("name", sorted(DIALECTS))
@@ -209,6 +216,8 @@ def test_restricted_dialect(tmp_path):
     )
     assert r.returncode == 0, r.stderr
     assert r.stdout.splitlines() == ["[0, 22] [0, 22] [0, 22]", "False 22 2"]
+    # A few messages: FMT stays a dict (less heap than IdTable's code would take).
+    assert "FMT = {" in out.read_text() and "IdTable" not in out.read_text()
 
 
 def test_select_by_id_or_name():

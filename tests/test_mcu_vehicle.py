@@ -93,7 +93,9 @@ def _board_params():
     boards = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "boards")
     sys.path.insert(0, boards)
     try:
-        from qemu import PARAMS  # the emulated boards' table (the unix vehicle's, adapted)
+        # The emulated boards' table (the unix vehicle's, adapted), readable: the boards
+        # freeze it compiled (qemu_params_block.py).
+        from qemu_params import PARAMS
     finally:
         sys.path.remove(boards)
     return PARAMS

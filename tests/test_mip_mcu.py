@@ -66,7 +66,7 @@ def test_mip_install_from_the_checkout_runs_the_vehicle(board):
     boards = os.path.join(ROOT, "boards")
     mpremote(repl_pty, "fs", "cp", os.path.join(boards, "qemu_m3.py"), ":/flash/board.py", "+",
              "fs", "cp", os.path.join(boards, "qemu.py"), ":/flash/qemu.py", "+",
-             "fs", "cp", os.path.join(boards, "unix_params.py"), ":/flash/unix_params.py")
+             "fs", "cp", os.path.join(boards, "qemu_params_block.py"), ":/flash/qemu_params_block.py")
     b = Board(repl_pty).open()
     try:
         listing = b.exec("import os\nprint(sorted(os.listdir('/flash')), len(os.listdir('/flash/mavstack')))")

@@ -9,7 +9,7 @@ import pytest
 from conftest import ROOT
 
 sys.path.insert(0, os.path.join(ROOT, "tests", "mpy"))
-from harness import Bench  # noqa: E402
+from harness import Bench, Board  # noqa: E402
 import wire_oracle  # noqa: E402
 
 from mavstack.dialects import common, seed2012  # noqa: E402
@@ -234,3 +234,77 @@ def test_seed_setters_decode_in_pymavlink():
     check(get(251), name="alpha", value=1.5)
     tm.extended_sys_state(0, 2)  # not in the seed: a no-op
     tm.rc_channels([1500] * 12)
+
+
+class Listed(Board):
+    TELEMETRY = (30, 147)  # ATTITUDE, BATTERY_STATUS
+
+
+def every_writer(tm):
+    """Every writer, once."""
+    tm.attitude(0.1, -0.2, 0.3, 0.01, -0.02, 0.03)
+    tm.attitude_quaternion(0.9, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6)
+    tm.global_position(473977420, 85455940, 488123, 1234, 150, -250, -30, 27000)
+    tm.local_position(1.5, -2.5, -3.0, 0.5, 0.25, -0.125)
+    tm.gps_raw(3, 473977420, 85455940, 488123, 80, 120, 150, 9000, 12)
+    tm.gps_status(3, [1, 2, 3], [1, 0, 1], [10, 20, 30], [40, 50, 60], [30, 31, 32])
+    tm.scaled_imu(1, 2, -1000, 4, 5, 6, 210, -7, 430)
+    tm.raw_imu(11, 12, 13, 14, 15, 16, 17, 18, 19)
+    tm.raw_pressure(10132, 2, 3, 2500)
+    tm.scaled_pressure(1013.25, 0.5, 2500)
+    tm.highres_imu(0.1, 0.2, -9.8, 0.01, 0.02, 0.03, 0.21, 0.0, 0.43, 1013.25, 0.5, 488.5, 15.5, 0x1FFF)
+    tm.rc_channels([1000, 1100, 1200, 1300, 1500, 1600, 1700, 2000, 1800, 1900], 200)
+    tm.servo_output([1100, 1200, 1300, 1400, 1500, 1600, 1700, 1800, 1900, 2000], 1)
+    tm.nav_controller(1.5, -2.5, 90, 180, 1234, 3.5, 0.5, -0.25)
+    tm.vfr_hud(12.5, 11.0, 270, 55, 500.25, -1.5)
+    tm.optical_flow(7, 10, -20, 0.5, -0.25, 200, 3.5, 0.1, 0.2)
+    tm.battery(12300, 450, 87, 1200, [4100, 4104, 4096], 2, 2500, 345, 600, 1)
+    tm.extended_sys_state(0, 2)
+    tm.debug(3, 2.5)
+    tm.debug_vect(b"vec", 1.0, 2.0, 3.0)
+    tm.named_value_int(b"count", -7)
+    tm.named_value_float(b"speed", 1.5)
+
+
+def test_telemetry_setting_makes_only_the_listed_slots():
+    """TELEMETRY: slots and producers for the listed messages alone; every other writer
+    still runs (into one sink, never sent), and a request for its message is refused."""
+    b = Bench(services=("commands", "streams"), board=Listed)
+    rec = Recorder()
+    link = b.ep.add_link(rec, 2)
+    b.run(1234)
+    tm = b.ep.telemetry
+    assert sorted(tm.slots) == [30, 147]
+    assert not any(m in b.ep.producers for m in MESSAGES if m not in (30, 147))
+    every_writer(tm)
+    check(one(b, link, rec, "common", 2, 30), roll=0.1, pitch=-0.2, yaw=0.3)
+    check(one(b, link, rec, "common", 2, 147), id=2, current_battery=450, battery_remaining=87)
+    assert not tm.written(24) and tm.written(30)
+    assert not b.ep.services["streams"].set_rate(link, 24, 5)  # GPS_RAW_INT: not produced
+    assert b.ep.services["streams"].set_rate(link, 30, 5)
+
+
+def test_telemetry_setting_writers_allocate_nothing_on_micropython():
+    from conftest import run_mpy
+
+    r = run_mpy(
+        "import micropython\n"
+        "from harness import Bench, Board\n"
+        "class Listed(Board):\n"
+        "    TELEMETRY = (30,)\n"
+        "b = Bench(services=('commands', 'streams'), board=Listed)\n"
+        "tm = b.ep.telemetry\n"
+        "def write():\n"
+        "    tm.attitude(0.1, -0.2, 0.3, 0.01, -0.02, 0.03)\n"  # a slot
+        "    tm.vfr_hud(12.5, 11.0, 270, 55, 500.25, -1.5)\n"  # the sink
+        "    tm.global_position(473977420, 85455940, 488123, 1234, 150, -250, -30, 27000)\n"
+        "    tm.extended_sys_state(0, 2)\n"
+        "    tm.nav_controller(1.5, -2.5, 90, 180, 1234, 3.5, 0.5, -0.25)\n"
+        "    tm.debug(3, 2.5)\n"
+        "    tm.named_value_int(b'count', -7)\n"
+        "write()\n"
+        "micropython.heap_lock()\n"
+        "write()\n"
+        "micropython.heap_unlock()\n"
+        "print('ok', sorted(tm.slots))\n", path=[os.path.join(ROOT, "tests", "mpy")])
+    assert r.returncode == 0 and r.stdout.split()[:2] == ["ok", "[30]"], r.stdout + r.stderr

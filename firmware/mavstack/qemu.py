@@ -224,7 +224,9 @@ class UartTransport:
     as the pty): the baud rate a real radio link would have, / 10 for 8N1.
     """
 
-    def __init__(self, baud=57600, ring=2048):
+    rx_chunk = 128  # what the link reads at a time (link.py); the ring holds more
+
+    def __init__(self, baud=57600, ring=256):
         self.bytes_per_s = baud // 10
         self.name = "uart-" + MODEL
         self._ring = bytearray(ring)

@@ -96,6 +96,22 @@ class RamFile:
             self.st.set_length(self.entry, self.area, self.pos)
         return n
 
+    # In place (RamStorage.IN_PLACE): the area is memory()[offset():], with room() bytes
+    # from here; a writer that filled it says how much (wrote). Nothing is copied.
+    def memory(self):
+        return self.st.mem
+
+    def offset(self):
+        return self._base()
+
+    def room(self):
+        return self.st.capacity(self.entry) - self.pos
+
+    def wrote(self, n):
+        self.pos += n
+        if self.pos > self._length():
+            self.st.set_length(self.entry, self.area, self.pos)
+
     def flush(self):
         pass
 
@@ -110,6 +126,8 @@ class RamFile:
 
 
 class RamStorage:
+    IN_PLACE = True  # its files can be read and written in place (RamFile.memory)
+
     def __init__(self, region, max_files=12):
         self.mem = region
         self.root = "ram"

@@ -5,3 +5,6 @@
 include("../../firmware/manifest.py", services="all")
 module("harness.py", base_path="../mpy")
 module("wire_kinds.py", base_path="../mpy")
+# The unix vehicle's table of rows, which params_steady.py declares (the boards freeze
+# their parameters as a block, qemu_params_block.py).
+module("unix_params.py", base_path="../../boards")

@@ -14,10 +14,12 @@ halves, XORed together unmasked and masked once; no term is shifted left as far 
 The schedule and working variables live in lists made once at import, and functions keep
 small frames. Not reentrant: one compression at a time (no threads or interrupts sign).
 """
+from array import array
+
 from .sha256_k import SHA256_K
 
-# K as halves, K[t] = (_K[2t], _K[2t+1]); the split allocates once, at import.
-_K = tuple(SHA256_K[i >> 1] >> 16 if not i & 1 else SHA256_K[i >> 1] & 0xFFFF for i in range(128))
+# K as halves, K[t] = (_K[2t], _K[2t+1]) (SHA256_K is little-endian); made once, at import.
+_K = array("H", (SHA256_K[(2 * i ^ 2) + 1] << 8 | SHA256_K[2 * i ^ 2] for i in range(128)))
 
 # The whole schedule W[0..63]: W[t] = (_W[2t], _W[2t+1]).
 _W = [0] * 128

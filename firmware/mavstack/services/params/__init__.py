@@ -22,7 +22,7 @@ from .encoding import LinkEncodings, move, put16
 from .table import ParamTable, ID_LEN, READ_ONLY, REBOOT
 from .table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32  # noqa: F401
 from .table import UINT64, INT64, REAL64  # noqa: F401  (declaring one is an error)
-from .store import ParamStore, Guard, FILE
+from .store import ParamStore, Guard
 
 AFTER = ("status",)  # "auto": the conventions each link's ground station assumes
 
@@ -83,7 +83,8 @@ class Params(ParamStore, LinkEncodings, ParamTable):
         self.conventions = None  # the status service's (LinkEncodings)
         self._error = 0  # the MAV_PARAM_ERROR of the refusal being answered
         self._text = bytearray(_TEXT_LEN)  # "NAME applies after reboot", made in place
-        self._data = self._image  # what _load read the file into
+        self._data = None  # what _load read the file into (or storage's memory, from _at)
+        self._at = 0
         self._guard = Guard()
 
     def attach(self, ep):
@@ -100,9 +101,7 @@ class Params(ParamStore, LinkEncodings, ParamTable):
         ep.commands[_CMD_PREFLIGHT_STORAGE] = self._preflight_storage
         for link in ep.links:
             self._link_state(link)
-        self._load(True)
-        if getattr(ep, "storage", None) is not None:
-            ep.storage.reserve(FILE, len(self._image))  # the first save allocates nothing
+        self._attach_storage(getattr(ep, "storage", None))
         if self.sysid_param:
             self.put(self.index(self.sysid_param), ep.sysid)
 

@@ -3,8 +3,8 @@ whole sets of values taken (a reload, the defaults).
 
 The file is written new and renamed over the old one, and read back at start-up and on
 PREFLIGHT_STORAGE 0; its image (records by name, checksummed) is table.py's. A save or a
-reload asks the heap for nothing: the file goes through one buffer made at start-up,
-under a Guard instead of try.
+reload asks the heap for nothing: the file goes through one buffer made at start-up, or,
+in RAM storage (IN_PLACE), is packed and read where it lies; under a Guard instead of try.
 
 Reference: docs/services/params.md
 """
@@ -27,6 +27,15 @@ _IDLE_MS = const(1000)  # the tick with nothing owed and nothing to save
 class ParamStore:
     """Storage for Params (which has the table, self.ep, self._guard, self.dirty,
     self.autosave_ms and _announce)."""
+
+    def _attach_storage(self, storage):
+        """At start-up: the file's buffer (unless storage is read and written in place),
+        the stored values, and the file's room (the first save then allocates nothing)."""
+        if storage is not None and not getattr(storage, "IN_PLACE", False):
+            self.image()
+        self._load(True)
+        if storage is not None:
+            storage.reserve(FILE, self.size)
 
     def _preflight_storage(self, cmd):
         result = _RESULT_ACCEPTED
@@ -69,13 +78,21 @@ class ParamStore:
     def _write(self):
         storage = self.ep.storage
         # size: RAM storage gives a file its room when first made.
-        f = self._guard.file = storage.open_new(FILE, size=len(self._image))
-        n = f.write(self.pack())
+        f = self._guard.file = storage.open_new(FILE, size=self.size)
+        n = self._pack_in(f) if getattr(storage, "IN_PLACE", False) else f.write(self.pack())
         self._guard.file = None
         f.close()  # before commit: a file system flushes it here
-        if n != len(self._image):
+        if n != self.size:
             raise OSError(28)  # ENOSPC: the file's room is smaller (made by another firmware)
         storage.commit(FILE)
+
+    def _pack_in(self, f):
+        """The file packed straight into storage's memory -> its length, 0 if no room."""
+        if f.room() < self.size:
+            return 0
+        self.pack(f.memory(), f.offset())
+        f.wrote(self.size)
+        return self.size
 
     def _load(self, boot):
         """Read storage "params" -> success. At boot an unusable file means defaults;
@@ -86,7 +103,7 @@ class ParamStore:
             if boot:
                 storage.discard_new(FILE)  # a save cut short: the old file stands
             n = self._read(storage)
-        bad = -1 if n < 0 else self.unpack(self._data, n)
+        bad = -1 if n < 0 else self._unpack_read(n)
         if bad < 0:
             self._not_loaded(boot, storage, n)
             return False
@@ -100,6 +117,10 @@ class ParamStore:
                       b"params: stored values invalid, defaults used")
         return True
 
+    def _unpack_read(self, n):
+        """unpack() what _read read (apart: small frames, docs/design.md)."""
+        return self.unpack(self._data, n, self._at)
+
     def _read(self, storage):
         """The stored file into self._data -> its length, -1 if there is none."""
         with self._guard:
@@ -108,7 +129,13 @@ class ParamStore:
 
     def _read_file(self, storage):
         f = self._guard.file = storage.open(FILE, "rb")
-        n = f.readinto(self._room(f))
+        if getattr(storage, "IN_PLACE", False):  # read where it is
+            self._data = f.memory()
+            self._at = f.offset()
+            n = f.seek(0, 2)
+        else:
+            self._at = 0
+            n = f.readinto(self._room(f))
         self._guard.file = None
         f.close()
         return n
@@ -118,7 +145,7 @@ class ParamStore:
         firmware wrote: a rare buffer of its own)."""
         n = f.seek(0, 2)
         f.seek(0, 0)
-        self._data = self._image if n <= len(self._image) else bytearray(n)
+        self._data = self.image() if n <= self.size else bytearray(n)
         return self._data
 
     def _not_loaded(self, boot, storage, n):

@@ -1,11 +1,13 @@
 """The parameter table: names, types, ranges and values in a few flat buffers.
 
-Declared once, as a tuple of rows (the format: docs/services/params.md). Each value
-takes 4 bytes, as it travels in PARAM_VALUE (encoding.py); names are found through a
-crc16 of the id's bytes and one compare, so a lookup from a received frame allocates
-nothing. Values are checked on their keys (encoding.py), taken one at a time (accept) or
-as a whole set (adopt), and packed into and read from the parameter file's image, which
-stores them by name in one buffer made at start-up.
+Declared once, as a tuple of rows or a block made from them (block.py; the format:
+docs/services/params.md): names, types and limits are read in place from the block,
+which a frozen board keeps in flash. Each value takes 4 bytes, as it travels in
+PARAM_VALUE (encoding.py); names are found through a crc16 of the id's bytes and one
+compare, so a lookup from a received frame allocates nothing. Values are checked on their
+keys (encoding.py), taken one at a time (accept) or as a whole set (adopt), and packed
+into and read from the parameter file's image, which stores them by name in one buffer
+made at start-up.
 
 Reference: docs/services/params.md
 """
@@ -16,6 +18,8 @@ from ...fields import u16, f32_is_nan, cstr_len
 from ...kernels import crc16
 from .encoding import FRACTION, key, unkey, cast_unkey, not_finite, get_int, put_int
 from .encoding import cmp4, copy4, move, put16
+from . import block
+from .block import INT_RANGE as _INT_RANGE
 
 # MAV_PARAM_TYPE
 UINT8 = const(1)
@@ -38,36 +42,30 @@ _MAGIC = b"MSPR"
 _FILE_VERSION = const(1)
 _HEADER = const(8)  # magic, version, reserved, count (u16)
 
-_INT_RANGE = {  # declaration and application checks only (start-up, put)
-    UINT8: (0, 0xFF),
-    INT8: (-0x80, 0x7F),
-    UINT16: (0, 0xFFFF),
-    INT16: (-0x8000, 0x7FFF),
-    UINT32: (0, 0xFFFFFFFF),
-    INT32: (-0x80000000, 0x7FFFFFFF),
-}
-
-
 class ParamTable:
     def __init__(self, table, c_cast=False):
-        n = len(table)
-        if n > 0xFFFF:
-            raise ValueError("too many parameters")
+        """table: rows (compiled here) or a block (block.py) read in place."""
+        if not isinstance(table, (bytes, bytearray)):
+            table = block.compile(table)
+        n, nb = block.count(table)
+        o = block.parts(n, nb)
+        b = memoryview(table)
         self.count = n
         self.c_cast = c_cast
         self.changed = False  # set by accept(): the value changed
-        self._names = bytearray(ID_LEN * n)  # as param_id
-        self._lens = bytearray(n)
-        self._types = bytearray(n)
-        self._flags = bytearray(n)
+        self._names = b[o[0] : o[1]]  # as param_id
+        self._lens = b[o[1] : o[2]]
+        self._types = b[o[2] : o[3]]
+        self._flags = b[o[3] : o[4]]
+        self._defaults = b[o[4] : o[5]]
+        self._lo = b[o[5] : o[6]]  # ranges, as keys
+        self._hi = b[o[6] : o[7]]
+        self._buckets = b[o[7] : o[8]]  # crc16 of a name -> first index + 1 with that hash
+        self._chain = b[o[8] : o[9]]  # -> next index + 1 with the same hash
+        self._mask = nb - 1
         self._values = bytearray(4 * n)
-        self._defaults = bytearray(4 * n)
         # C-cast: integers travel as floats, so the wire copy differs from the values.
         self._wire = bytearray(4 * n) if c_cast else self._values
-        self._lo = bytearray(4 * n)  # ranges, as keys
-        self._hi = bytearray(4 * n)
-        self._by_hash = {}  # crc16 of a name -> first index with that hash
-        self._next = [-1] * n  # -> next index with the same hash
         self._k = bytearray(4)  # the key being checked
         self._scratch = bytearray(4)
         self._mark = bytearray(n)  # adopt(): which values changed
@@ -75,78 +73,19 @@ class ParamTable:
         self._bad = 0
         size = _HEADER + 2
         for i in range(n):
-            self._declare(i, table[i])
             size += 6 + self._lens[i]
-        self._image = bytearray(size)  # pack() writes the file here, _load reads it here
+        self.size = size  # of the file image
+        self._image = None  # image(): where pack() writes the file, made on first use
         self.adopt(self._defaults)
-
-    def _declare(self, i, row):
-        name, t, default = row[0], row[1], row[2]
-        raw = name.encode()
-        if not 0 < len(raw) <= ID_LEN or any(c <= 0x20 or c > 0x7E for c in raw):
-            raise ValueError("param name must be 1..16 printable ASCII chars: %r" % name)
-        if t in (UINT64, INT64, REAL64):
-            raise ValueError("%s: 64-bit params do not fit PARAM_VALUE's 4 bytes" % name)
-        if t != REAL32 and t not in _INT_RANGE:
-            raise ValueError("%s: unknown MAV_PARAM_TYPE %r" % (name, t))
-        if self.find(raw, 0, len(raw)) >= 0:
-            raise ValueError("param declared twice: " + name)
-        o = ID_LEN * i
-        for k in range(len(raw)):
-            self._names[o + k] = raw[k]
-        self._lens[i] = len(raw)
-        self._types[i] = t
-        self._flags[i] = row[5] if len(row) > 5 else 0
-        h = crc16(raw, 0, len(raw), 0xFFFF)
-        self._next[i] = self._by_hash.get(h, -1)
-        self._by_hash[h] = i
-        lo = row[3] if len(row) > 3 else None
-        hi = row[4] if len(row) > 4 else None
-        if t == REAL32:
-            self._declare_f32(i, name, default, lo, hi)
-        else:
-            self._declare_int(i, name, default, lo, hi)
-
-    def _declare_f32(self, i, name, default, lo, hi):
-        b = self._scratch
-        struct.pack_into("<f", b, 0, -3.4028234e38 if lo is None else lo)
-        key(REAL32, b, 0, False, self._k)
-        copy4(self._lo, 4 * i, self._k, 0)
-        struct.pack_into("<f", b, 0, 3.4028234e38 if hi is None else hi)
-        key(REAL32, b, 0, False, self._k)
-        copy4(self._hi, 4 * i, self._k, 0)
-        struct.pack_into("<f", self._defaults, 4 * i, default)
-        if cmp4(self._lo, 4 * i, self._hi, 4 * i) > 0 or not self.valid(i, self._defaults, 4 * i):
-            raise ValueError("%s: default outside min..max" % name)
-
-    def _declare_int(self, i, name, default, lo, hi):
-        t = self._types[i]
-        tlo, thi = _INT_RANGE[t]
-        lo = tlo if lo is None else int(lo)
-        hi = thi if hi is None else int(hi)
-        if not tlo <= lo <= hi <= thi:
-            raise ValueError("%s: min..max outside the type's range" % name)
-        if default != int(default):
-            raise ValueError("%s: default is not a whole number" % name)
-        if not lo <= default <= hi:
-            raise ValueError("%s: default outside min..max" % name)
-        b = self._scratch
-        put_int(b, 0, t, lo)
-        key(t, b, 0, False, self._k)
-        copy4(self._lo, 4 * i, self._k, 0)
-        put_int(b, 0, t, hi)
-        key(t, b, 0, False, self._k)
-        copy4(self._hi, 4 * i, self._k, 0)
-        put_int(self._defaults, 4 * i, t, int(default))
 
     def find(self, src, o, n):
         """Index of the parameter named src[o:o+n], else -1 (allocates nothing)."""
         if n == 0:
             return -1
-        i = crc16(src, o, o + n, 0xFFFF)
-        i = self._by_hash.get(i, -1)
+        i = crc16(src, o, o + n, 0xFFFF) & self._mask
+        i = u16(self._buckets, 2 * i) - 1
         while i >= 0 and not self._named(i, src, o, n):
-            i = self._next[i]
+            i = u16(self._chain, 2 * i) - 1
         return i
 
     def find_id(self, p, o):
@@ -296,16 +235,28 @@ class ParamTable:
         return self.changed
 
     # --- file image --------------------------------------------------------------------
-    def pack(self):
+    def pack(self, img=None, at=0):
         """The values as a file: header, (name, type, value) records, crc16. Written
-        whole into one buffer (the same each time: send it before the next pack)."""
-        img = self._image
-        _head(img, self.count)
-        o = _HEADER
+        whole into img from at (a storage's memory: in place), else into one buffer (the
+        same each time: send it before the next pack) -> img."""
+        if img is None:
+            img = self.image()
+        _head(img, at, self.count)
+        _seal(img, at, self._pack_all(img, at + _HEADER))
+        return img
+
+    def _pack_all(self, img, o):
+        """The records into img from o -> where they end (small frames: docs/design.md)."""
         for i in range(self.count):
             o = self._pack(img, o, i)
-        _seal(img, o)
-        return img
+        return o
+
+    def image(self):
+        """The file image's buffer, made on first use (a board that saves with the heap
+        locked makes it at start-up, or writes its storage in place: store.py)."""
+        if self._image is None:
+            self._image = bytearray(self.size)
+        return self._image
 
     def _pack(self, img, o, i):
         n = self._lens[i]
@@ -316,26 +267,26 @@ class ParamTable:
         copy4(img, o + 1, self._values, 4 * i)
         return o + 5
 
-    def unpack(self, data, n=-1):
-        """Values from a file image data[0:n] (n < 0: all of data) into self._loaded,
-        defaults where it has none -> how many of its records no longer fit (type
-        changed, out of range), or -1 if it is corrupt."""
-        end = (len(data) if n < 0 else n) - 2
-        if end < _HEADER or not _is_image(data):
+    def unpack(self, data, n=-1, at=0):
+        """Values from a file image data[at:at+n] (n < 0: to the end of data) into
+        self._loaded, defaults where it has none -> how many of its records no longer fit
+        (type changed, out of range), or -1 if it is corrupt."""
+        end = at + (len(data) - at if n < 0 else n) - 2
+        if end < at + _HEADER or not _sound(data, at, end):
             return -1
-        if crc16(data, 0, end, 0xFFFF) != u16(data, end):
-            return -1
-        move(self._loaded, 0, self._defaults, 0, len(self._loaded))
-        return self._records(data, end)
+        return self._records(data, at + _HEADER, end)
 
-    def _records(self, data, end):
+    def _records(self, data, o, end):
+        self._reset_loaded()
         self._bad = 0
-        o = _HEADER
-        n = u16(data, 6)
+        n = u16(data, o - 2)  # the header's count
         while n and o >= 0:
             o = self._unpack(data, o, end)
             n -= 1
         return self._bad if o == end else -1
+
+    def _reset_loaded(self):
+        move(self._loaded, 0, self._defaults, 0, len(self._loaded))
 
     def _unpack(self, data, o, end):
         """Take the record at data[o:] -> where the next one starts, -1 if corrupt."""
@@ -357,18 +308,23 @@ class ParamTable:
             self._bad += 1
 
 
-def _head(img, count):
-    move(img, 0, _MAGIC, 0, 4)
-    img[4] = _FILE_VERSION
-    img[5] = 0
-    put16(img, 6, count)
+def _head(img, at, count):
+    move(img, at, _MAGIC, 0, 4)
+    img[at + 4] = _FILE_VERSION
+    img[at + 5] = 0
+    put16(img, at + 6, count)
 
 
-def _seal(img, end):
-    """The crc16 of img[0:end] after it."""
-    put16(img, end, crc16(img, 0, end, 0xFFFF))
+def _seal(img, at, end):
+    """The crc16 of img[at:end] after it."""
+    put16(img, end, crc16(img, at, end, 0xFFFF))
 
 
-def _is_image(data):
-    return (data[0] == _MAGIC[0] and data[1] == _MAGIC[1] and data[2] == _MAGIC[2]
-            and data[3] == _MAGIC[3] and data[4] == _FILE_VERSION)
+def _sound(data, at, end):
+    """data[at:end] is a file image whose crc16 follows it."""
+    return _is_image(data, at) and crc16(data, at, end, 0xFFFF) == u16(data, end)
+
+
+def _is_image(data, at):
+    return (data[at] == _MAGIC[0] and data[at + 1] == _MAGIC[1] and data[at + 2] == _MAGIC[2]
+            and data[at + 3] == _MAGIC[3] and data[at + 4] == _FILE_VERSION)

@@ -58,6 +58,15 @@ def group(stream_id):
     return None
 
 
+def _find(streams, msgid):
+    """The Stream of msgid in a link's list, None if it has none (requests only: a few
+    dozen at most, and no dict to hold)."""
+    for s in streams:
+        if s.msgid == msgid:
+            return s
+    return None
+
+
 class Streams:
     NAME = "streams"
 
@@ -95,7 +104,7 @@ class Streams:
             fit(ls, self.ep.producers)
 
     def _stream(self, ls, msgid, create=True):
-        s = ls.by_id.get(msgid)
+        s = _find(ls.streams, msgid)
         if s is None and create and self.ep.has(msgid):
             s = self._create(ls, msgid)
         return s
@@ -106,17 +115,13 @@ class Streams:
         which every request runs, to keep that one's frame small.)"""
         try:
             self._new_stream(ls, msgid)
-        except MemoryError:  # (raised without allocating)
-            if ls.by_id.get(msgid) is not None and len(ls.streams) != len(ls.by_id):
-                del ls.by_id[msgid]  # (the list could not take it)
+        except MemoryError:  # (raised without allocating; the list did not take it)
             return None
-        return ls.by_id.get(msgid)
+        return _find(ls.streams, msgid)
 
     def _new_stream(self, ls, msgid):
         info = self.ep.dialect.CRC_LEN[msgid]
-        s = Stream(msgid, self.ep.producers.get(msgid), (info >> 16) + 12)
-        ls.by_id[msgid] = s
-        ls.streams.append(s)
+        ls.streams.append(Stream(msgid, self.ep.producers.get(msgid), (info >> 16) + 12))
 
     def _apply(self, ls, s, now):
         want = s.requested_us if s.requested_us else s.default_us

@@ -43,7 +43,6 @@ class LinkStreams:
     def __init__(self, link, now):
         self.link = link
         self.streams = []
-        self.by_id = {}
         self.now = now  # this tick's
         self.start = 0  # first stream looked at next tick (rotates, for fairness)
         self.win_start = now  # window over which priority traffic is measured

@@ -2,7 +2,8 @@
 
 A Slot holds one message's preallocated payload: whoever owns it packs values in place
 (allocating nothing) and its send() is the message's producer, sending the last value
-written (nothing until one is). NamedSlot keeps one payload per name (NAMED_VALUE_*).
+written (nothing until one is). NamedSlot keeps one payload per name (NAMED_VALUE_*); a Sink takes what
+nobody sends.
 The telemetry writers, the inputs service's echoes and other services' slots are made
 of these. Reference: docs/services/streams.md.
 """
@@ -76,6 +77,27 @@ class NamedSlot(Slot):
         i = self.next
         self.next = i + 1 if i + 1 < self.used else 0
         return link.send_payload(self.msgid, self.bufs[i], self.size)
+
+
+class Sink(NamedSlot):
+    """Where the writers of messages a board leaves out of TELEMETRY write (one for them
+    all, never sent): room for the largest payload, and no struct format (the writers that
+    pack by the dialect's format check base)."""
+
+    def __init__(self, size):
+        self.msgid = -1
+        self.size = size
+        self.buf = bytearray(size)
+        self.ext_off = 0
+        self.base = self.ext = None
+        self.written = False
+        self.bufs = [self.buf]
+        self.names = [None]
+        self.used = 0
+        self.next = 0
+
+    def send(self, link):
+        return False
 
 
 # Packers, of few locals (their frames stay small: see docs/design.md).

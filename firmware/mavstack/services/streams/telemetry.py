@@ -9,7 +9,7 @@ import struct
 from struct import pack_into
 
 from ...compat import const
-from .slots import (NamedSlot, Slot, fill_u16, put_bytes20, put_cells, put_ext_cells,
+from .slots import (NamedSlot, Sink, Slot, fill_u16, put_bytes20, put_cells, put_ext_cells,
                     put_rc8, put_u16s)
 
 _GPS_RAW_INT = const(24)
@@ -56,15 +56,22 @@ class Telemetry:
     def __init__(self, ep):
         self.ep = ep
         self.slots = {}  # msgid -> Slot; public: other services write into one (servos)
+        # TELEMETRY: the messages the board writes (default: all); the others' writers
+        # write into one Sink and nothing is sent.
+        listed = ep.setting("TELEMETRY") or MESSAGES
+        room = 0
         for msgid in MESSAGES:
-            if ep.has(msgid):
+            if ep.has(msgid) and msgid in listed:
                 if msgid == _NAMED_VALUE_FLOAT or msgid == _NAMED_VALUE_INT:
                     slot = NamedSlot(ep, msgid)
                 else:
                     slot = Slot(ep, msgid)
                 self.slots[msgid] = slot
                 ep.producers[msgid] = slot.send
-        g = self.slots.get
+            elif ep.has(msgid):
+                room = max(room, ep.dialect.CRC_LEN[msgid] >> 16)
+        self._sink = Sink(room) if room else None
+        g = self._slot
         self._gps_raw = g(_GPS_RAW_INT)
         self._gps_status = g(_GPS_STATUS)
         self._scaled_imu = g(_SCALED_IMU)
@@ -111,6 +118,11 @@ class Telemetry:
     def time_boot_ms(self):
         return self.clock.uptime_ms() & 0xFFFFFFFF
 
+    def _slot(self, msgid):
+        """msgid's slot; the sink where the board leaves it out, None if the dialect lacks it."""
+        s = self.slots.get(msgid)
+        return self._sink if s is None and self.ep.has(msgid) else s
+
     def written(self, msgid):
         slot = self.slots.get(msgid)
         return slot is not None and slot.written
@@ -119,45 +131,28 @@ class Telemetry:
 
     def attitude(self, roll, pitch, yaw, rollspeed, pitchspeed, yawspeed):
         """ATTITUDE: rad, rad/s."""
-        self._v1 = roll
-        self._v2 = pitch
-        self._v3 = yaw
-        self._v4 = rollspeed
-        self._v5 = pitchspeed
-        self._v6 = yawspeed
+        self._v1, self._v2, self._v3 = roll, pitch, yaw  # (three at a time: no tuple is made)
+        self._v4, self._v5, self._v6 = rollspeed, pitchspeed, yawspeed
         self._six_floats(self._attitude)
 
     def attitude_quaternion(self, q1, q2, q3, q4, rollspeed, pitchspeed, yawspeed):
         """ATTITUDE_QUATERNION: w, x, y, z; rad/s."""
-        self._v1 = q1
-        self._v2 = q2
-        self._v3 = q3
-        self._v4 = q4
-        self._v5 = rollspeed
-        self._v6 = pitchspeed
+        self._v1, self._v2, self._v3 = q1, q2, q3
+        self._v4, self._v5, self._v6 = q4, rollspeed, pitchspeed
         self._v7 = yawspeed
         self._put_quaternion()
 
     def global_position(self, lat, lon, alt, relative_alt, vx, vy, vz, hdg):
         """GLOBAL_POSITION_INT: degE7, degE7, mm (MSL), mm (above home), cm/s NED, cdeg (65535 unknown)."""
-        self._v1 = lat
-        self._v2 = lon
-        self._v3 = alt
-        self._v4 = relative_alt
-        self._v5 = vx
-        self._v6 = vy
-        self._v7 = vz
-        self._v8 = hdg
+        self._v1, self._v2, self._v3 = lat, lon, alt
+        self._v4, self._v5, self._v6 = relative_alt, vx, vy
+        self._v7, self._v8 = vz, hdg
         self._put_global()
 
     def local_position(self, x, y, z, vx, vy, vz):
         """LOCAL_POSITION_NED: m, m/s."""
-        self._v1 = x
-        self._v2 = y
-        self._v3 = z
-        self._v4 = vx
-        self._v5 = vy
-        self._v6 = vz
+        self._v1, self._v2, self._v3 = x, y, z
+        self._v4, self._v5, self._v6 = vx, vy, vz
         self._six_floats(self._local)
 
     # Packers of the staged values (self._v1..), a few fields a call.
@@ -188,6 +183,8 @@ class Telemetry:
         """GPS_RAW_INT: GPS_FIX_TYPE, degE7, degE7, mm, HDOP*100, VDOP*100, cm/s, cdeg, count;
         the accuracies (mm, mm/s, degE5) and yaw (cdeg) where the dialect has them."""
         s = self._gps_raw
+        if s.base is None:  # the sink
+            return
         struct.pack_into(s.base, s.buf, 0, 0, lat, lon, alt, eph, epv, vel, cog,
                          fix_type, satellites_visible)
         self.clock.stamp_us(s.buf, 0)
@@ -209,6 +206,8 @@ class Telemetry:
     def scaled_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag):
         """SCALED_IMU: mG, mrad/s, mgauss."""
         s = self._scaled_imu
+        if s.base is None:  # the sink
+            return
         struct.pack_into(s.base, s.buf, 0, 0, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag)
         self.clock.stamp_ms(s.buf, 0)
         s.written = True
@@ -216,6 +215,8 @@ class Telemetry:
     def raw_imu(self, xacc, yacc, zacc, xgyro, ygyro, zgyro, xmag, ymag, zmag):
         """RAW_IMU: the sensors' raw counts."""
         s = self._raw_imu
+        if s.base is None:  # the sink
+            return
         struct.pack_into(s.base, s.buf, 0, 0, xacc, yacc, zacc, xgyro, ygyro, zgyro,
                          xmag, ymag, zmag)
         self.clock.stamp_us(s.buf, 0)
@@ -238,6 +239,8 @@ class Telemetry:
                     abs_pressure, diff_pressure, pressure_alt, temperature, fields_updated):
         """HIGHRES_IMU: m/s/s, rad/s, gauss, hPa, hPa, m, degC, HIGHRES_IMU_UPDATED_FLAGS."""
         s = self._highres
+        if s.base is None:  # the sink
+            return
         struct.pack_into(s.base, s.buf, 0, 0, xacc, yacc, zacc, xgyro, ygyro, zgyro,
                          xmag, ymag, zmag, abs_pressure, diff_pressure, pressure_alt, temperature, fields_updated)
         self.clock.stamp_us(s.buf, 0)
@@ -297,12 +300,8 @@ class Telemetry:
 
     def vfr_hud(self, airspeed, groundspeed, heading, throttle, alt, climb):
         """VFR_HUD: m/s, m/s, deg (0..360), % (0..100), m (MSL), m/s."""
-        self._v1 = airspeed
-        self._v2 = groundspeed
-        self._v3 = heading
-        self._v4 = throttle
-        self._v5 = alt
-        self._v6 = climb
+        self._v1, self._v2, self._v3 = airspeed, groundspeed, heading
+        self._v4, self._v5, self._v6 = throttle, alt, climb
         self._put_hud()
 
     def _put_hud(self):
@@ -316,6 +315,8 @@ class Telemetry:
                      ground_distance, flow_rate_x=0.0, flow_rate_y=0.0):
         """OPTICAL_FLOW: dpix, dpix, m/s, m/s, 0..255, m; rad/s where the dialect has them."""
         s = self._flow
+        if s.base is None:  # the sink
+            return
         struct.pack_into(s.base, s.buf, 0, 0, flow_comp_m_x, flow_comp_m_y,
                          ground_distance, flow_x, flow_y, sensor_id, quality)
         self.clock.stamp_us(s.buf, 0)
