@@ -95,6 +95,7 @@ def build(board, opts, dog=None):
     else:
         for transport in board.transports():
             ep.add_link(transport)
+    _routing(ep)
     if dog is not None:
         dog.feed()
     # Each after the services it needs (in safe mode, those the guard leaves).
@@ -111,6 +112,24 @@ def build(board, opts, dog=None):
         app = board.application(ep)
     _check_ram(ep, board)
     return ep, app
+
+
+def _routing(ep):
+    """Routing between the links (mavstack/router.py): on by default with more than one
+    link (ROUTING, --set routing=0/1); ROUTES entries, forgotten after ROUTE_TIMEOUT_MS of
+    silence; PRIVATE_LINKS: link indexes ("1,2") nothing is forwarded to or from, as is a
+    transport whose `private` is True. Reference: docs/routing.md."""
+    if not ep.setting("ROUTING", len(ep.links) > 1):
+        return
+    from mavstack.router import Router  # only then (RAM)
+
+    private = 0
+    for i in str(ep.setting("PRIVATE_LINKS", "")).replace(",", " ").split():
+        private |= 1 << int(i)
+    for link in ep.links:
+        if getattr(link.transport, "private", False):
+            private |= 1 << link.index
+    ep.add(Router(ep.setting("ROUTES", 16), ep.setting("ROUTE_TIMEOUT_MS", 10000), private))
 
 
 def _check_ram(ep, board):

@@ -59,6 +59,7 @@ class Link:
         self.bytes_per_s = transport.bytes_per_s
         self.tx_bytes = 0
         self.tx_dropped = 0
+        self.fwd_frames = 0  # frames routed here from other links (router.py)
         self._rxbuf = bytearray(getattr(transport, "rx_chunk", _RX_CHUNK))
         # A transport that wants to know which of its datagrams held a valid frame (UDP
         # servers choose their peers by it): heard(now), bound once here.
@@ -98,6 +99,8 @@ class Link:
         self._slot = _UNKNOWN
         if msgid == _MSG_HEARTBEAT and payload[4] == _MAV_TYPE_GCS:
             self._keep()
+        if self.endpoint.router is not None:
+            self.endpoint.router.route(self, msgid)  # forwarded first (router.py)
         self.endpoint.dispatch(self, msgid, payload)
         self._in_frame = False
         self._slot = _UNKNOWN
@@ -131,6 +134,24 @@ class Link:
         """Transmit a prepacked payload[0:n] (telemetry slots keep theirs ready)."""
         self.tx.load(payload, n, msgid)
         return self.send(msgid, compid)
+
+    def forward(self, buf, n):
+        """Write a frame routed from another link, buf[0:n] as it came, paid from the
+        budget at RANK_FILL (docs/routing.md); False if not written."""
+        bps = self.bytes_per_s
+        if bps > 0 and bps <= _UNPACED:
+            self._refill()
+            if self.credit - n * 1000 < _FLOOR[RANK_FILL]:
+                self.tx_held = (self.tx_held + 1) & TX_WRAP
+                return False
+            self.credit -= n * 1000
+        if self.transport.write(buf, n) != n:
+            self.tx_dropped = (self.tx_dropped + 1) & TX_WRAP
+            return False
+        self.tx_bytes = (self.tx_bytes + n) & TX_WRAP
+        self.tx_low = (self.tx_low + n) & TX_WRAP  # yields to streams, as lists do
+        self.fwd_frames = (self.fwd_frames + 1) & TX_WRAP
+        return True
 
     # --- the budget (small functions: see docs/design.md) -----------------------------
     def can_send(self, nbytes, rank):
