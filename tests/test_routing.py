@@ -302,3 +302,23 @@ def test_main_adds_routing_by_link_count(tmp_path):
     ep, _ = main.build(Board, off)
     assert ep.router is None
     ep.close()
+
+
+@pytest.mark.parametrize("portable", [False, True], ids=["viper", "portable"])
+def test_route_steady_heap_locked_on_micropython(portable):
+    """tests/mpy/route_steady.py on the unix port: forwarding allocates nothing (test_mcu.py
+    runs it on the emulated boards)."""
+    from conftest import run_mpy
+
+    mpy = os.path.join(ROOT, "tests", "mpy")
+    env = dict(os.environ)
+    if portable:
+        os.environ["MAVSTACK_PORTABLE"] = "1"
+    try:
+        r = run_mpy(os.path.join(mpy, "route_steady.py"), 3000, path=[mpy], timeout=300)
+    finally:
+        os.environ.clear()
+        os.environ.update(env)
+    lines = r.stdout.strip().splitlines()
+    assert r.returncode == 0 and lines and lines[-1].startswith("OK"), r.stdout + r.stderr
+    assert lines[-1].endswith(" requested=0"), lines[-1]

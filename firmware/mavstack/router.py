@@ -49,18 +49,23 @@ class Router:
     def route(self, link, msgid):
         """A frame arrived on link (its parser holds it): learn its sender, forward it."""
         rx = link.rx
-        ep = self.ep
-        key = (rx.sysid << 8 | rx.compid) + 1
-        if key == (ep.sysid << 8 | ep.compid) + 1:
+        i = self._sender(rx, link.index)
+        if i < 0:
             return  # our own, looped back
-        i = self._learn(key, link.index)
         if msgid == _MSG_SYSTEM_TIME:
-            self._time(i, rx.payload, key, link.index)
+            self._time(i, rx, link.index)
         if msgid == _MSG_RADIO_STATUS or msgid == _MSG_RADIO or self.private >> link.index & 1:
             return
         mask = self._where(msgid, rx.payload) & ~(1 << link.index) & ~self.private
         if mask:
             self._forward(rx, mask)
+
+    def _sender(self, rx, index):
+        """The sender's entry, learnt (-1: the sender is us)."""
+        key = (rx.sysid << 8 | rx.compid) + 1
+        if key == (self.ep.sysid << 8 | self.ep.compid) + 1:
+            return -1
+        return self._learn(key, index)
 
     def _learn(self, key, index):
         i = self._at
@@ -102,13 +107,14 @@ class Router:
         self.boot[best] = -1
         return best
 
-    def _time(self, i, p, key, index):
+    def _time(self, i, rx, index):
         """SYSTEM_TIME: a time_boot_ms lower than its last one is a reboot, and the
         system's routes are forgotten (then this sender learnt again)."""
+        p = rx.payload
         t = p[8] >> 2 | p[9] << 6 | p[10] << 14 | p[11] << 22  # time_boot_ms >> 2, < 2^30
         if 0 <= t < self.boot[i]:
-            self.forget(key - 1 >> 8)
-            i = self._learn(key, index)
+            self.forget(rx.sysid)
+            i = self._sender(rx, index)
         self.boot[i] = t
 
     def _target(self, msgid):
@@ -152,21 +158,24 @@ class Router:
         return mask
 
     def _forward(self, rx, mask):
-        """The frame as it came, rebuilt in self.frame (the parser widened its payload
-        over the CRC: the CRC is computed again, the same), written to every link in mask."""
-        buf = rx.buf
+        """The frame as it came, rebuilt in self.frame, written to every link in mask."""
+        n = self._copy(rx.buf, rx.crc_len[rx.msgid] & 0xFF)
+        if rx.signed:
+            copy(self.frame, rx.signature, n, SIGNATURE_LEN)
+            n += SIGNATURE_LEN
+        self._send(mask, n)
+
+    def _copy(self, buf, extra):
+        """Header and payload as they came; the parser widened the payload over the CRC,
+        so the CRC is computed again (the same) -> the frame's length, unsigned."""
         frame = self.frame
         n = (HEADER_V2 if buf[0] == STX_V2 else HEADER_V1) + buf[1]
         copy(frame, buf, 0, n)
-        frame[n] = rx.crc_len[rx.msgid] & 0xFF  # CRC_EXTRA where the CRC goes, as the parser
+        frame[n] = extra  # CRC_EXTRA where the CRC goes, as the parser checks it
         crc = crc16(frame, 1, n + 1, 0xFFFF)
         frame[n] = crc & 0xFF
         frame[n + 1] = crc >> 8
-        n += 2
-        if rx.signed:
-            copy(frame, rx.signature, n, SIGNATURE_LEN)
-            n += SIGNATURE_LEN
-        self._send(mask, n)
+        return n + 2
 
     def _send(self, mask, n):
         links = self.ep.links
