@@ -1,0 +1,82 @@
+"""Routing end to end, in the style of mavlink-router's routing test: the unix vehicle
+with three UDP links, a pymavlink peer on each (a ground station, a companion, another
+system), PINGs broadcast and targeted; each must reach exactly the right peers, the first
+targeted to an unknown system none, and nothing come back to its sender."""
+import time
+
+from pymavlink import mavutil
+
+from conftest import free_udp_port
+
+PEERS = {"gcs": (255, 190), "companion": (42, 191), "other": (43, 1)}
+
+
+def connect(port, sysid, compid, mavlink1=False):
+    m = mavutil.mavlink_connection("udpout:127.0.0.1:%d" % port, source_system=sysid,
+                                   source_component=compid, dialect="common")
+    if mavlink1:
+        send = m.mav.send
+        m.mav.send = lambda msg, force_mavlink1=False: send(msg, force_mavlink1=True)
+    return m
+
+
+def collect(peers, seconds=1.0):
+    """{name: [(src sysid, src compid, PING seq, target sys, target comp, MAVLink version)]}
+    of the PINGs each peer got that the vehicle did not make."""
+    got = {name: [] for name in peers}
+    deadline = time.time() + seconds
+    while time.time() < deadline:
+        for name, m in peers.items():
+            msg = m.recv_match(type="PING", blocking=False)
+            while msg is not None:
+                if msg.get_srcSystem() != 1:
+                    v = 1 if msg.get_msgbuf()[0] == 0xFE else 2
+                    got[name].append((msg.get_srcSystem(), msg.get_srcComponent(), msg.seq,
+                                      msg.target_system, msg.target_component, v))
+                msg = m.recv_match(type="PING", blocking=False)
+        time.sleep(0.01)
+    return got
+
+
+def test_pings_across_three_links(vehicle):
+    ports = [free_udp_port() for _ in range(3)]
+    v = vehicle(links=["udpin:127.0.0.1:%d" % p for p in ports])
+    peers = {name: connect(port, *PEERS[name]) for name, port in zip(PEERS, ports)}
+    # Each peer is heard (the vehicle's udpin links answer those heard), and heard of.
+    deadline = time.time() + 20
+    seen = set()
+    while len(seen) < 3 and time.time() < deadline:
+        for name, m in peers.items():
+            m.mav.heartbeat_send(6 if name == "gcs" else 18, 8, 0, 0, 0)
+            if m.recv_match(type="HEARTBEAT", blocking=True, timeout=0.2) is not None:
+                seen.add(name)
+        v.check_alive()
+    assert len(seen) == 3, v.output()
+    collect(peers, 0.5)
+    gcs, comp, other = peers["gcs"], peers["companion"], peers["other"]
+
+    gcs.mav.ping_send(1, 101, 77, 1)  # an unknown system: dropped
+    assert collect(peers) == {"gcs": [], "companion": [], "other": []}
+
+    gcs.mav.ping_send(1, 102, 0, 0)  # broadcast: everyone else
+    got = collect(peers)
+    assert got["gcs"] == [] and got["companion"] == got["other"] == [(255, 190, 102, 0, 0, 2)], got
+
+    gcs.mav.ping_send(1, 103, 42, 191)  # targeted: the companion alone
+    got = collect(peers)
+    assert got == {"gcs": [], "companion": [(255, 190, 103, 42, 191, 2)], "other": []}, got
+
+    comp.mav.ping_send(1, 104, 255, 190)  # and back
+    got = collect(peers)
+    assert got == {"gcs": [(42, 191, 104, 255, 190, 2)], "companion": [], "other": []}, got
+
+    other.mav.ping_send(1, 105, 42, 0)  # a system, any component
+    got = collect(peers)
+    assert got == {"gcs": [], "companion": [(43, 1, 105, 42, 0, 2)], "other": []}, got
+
+    v1 = connect(ports[2], 43, 1, mavlink1=True)  # the same peer, MAVLink 1
+    v1.mav.ping_send(1, 106, 0, 0)
+    got = collect(peers)
+    assert got["gcs"] == got["companion"] == [(43, 1, 106, 0, 0, 1)], got
+    v1.close()
+    v.check_alive()
