@@ -65,9 +65,6 @@ class Router:
         key = (rx.sysid << 8 | rx.compid) + 1
         if key == (self.ep.sysid << 8 | self.ep.compid) + 1:
             return -1
-        return self._learn(key, index)
-
-    def _learn(self, key, index):
         i = self._at
         if self.keys[i] != key:
             i = self._find(key)
@@ -77,6 +74,15 @@ class Router:
         self.heard[i] = self.ep.now
         self.links[i] |= 1 << index
         return i
+
+    def learn(self, sysid, compid, index):
+        """Learn a route as a frame from (sysid, compid) on link index would (tests, benches)."""
+        key = (sysid << 8 | compid) + 1
+        i = self._find(key)
+        if i < 0:
+            i = self._take(key)
+        self.heard[i] = self.ep.now
+        self.links[i] |= 1 << index
 
     def _find(self, key):
         keys = self.keys
@@ -114,14 +120,12 @@ class Router:
         t = p[8] >> 2 | p[9] << 6 | p[10] << 14 | p[11] << 22  # time_boot_ms >> 2, < 2^30
         if 0 <= t < self.boot[i]:
             self.forget(rx.sysid)
-            i = self._sender(rx, index)
+            i = self._sender(rx, index)  # learnt again
         self.boot[i] = t
 
     def _target(self, msgid):
-        """Where the message's targets sit: system offset + 1 | component offset + 1 << 8."""
-        if msgid < 256:
-            t = self.targets
-            return t[2 * msgid] | t[2 * msgid + 1] << 8
+        """Where the targets of a message id >= 256 sit: system offset + 1 | component
+        offset + 1 << 8 (TARGETS_HIGH; those below 256 are read in _where)."""
         t = self.targets_high
         i = 0
         while i < len(t):
@@ -132,8 +136,13 @@ class Router:
 
     def _where(self, msgid, p):
         """The links the frame goes to, as a mask (the arrival link not yet taken out)."""
-        t = self._target(msgid)
-        ts = p[(t & 0xFF) - 1] if t & 0xFF else 0
+        if msgid < 256:
+            t = self.targets[2 * msgid]
+            ts = p[t - 1] if t else 0
+            t |= self.targets[2 * msgid + 1] << 8
+        else:
+            t = self._target(msgid)
+            ts = p[(t & 0xFF) - 1] if t & 0xFF else 0
         if ts == 0:
             return _ALL  # broadcast (or no target at all)
         tc = p[(t >> 8) - 1] if t >> 8 else 0
