@@ -97,3 +97,16 @@ def test_frames_lost_without_flow_control(vehicle):
     r = radio_rig.session(v, 15)
     print("radio, flow control off:", r)
     assert r["overflow"] > 0 and r["flow_reports"] == 0, r
+
+
+def test_mavctl_watch_shows_the_scaling(vehicle):
+    from mavctl_tools import mavctl, ok
+
+    v = vehicle(args=["--set", "udp_bytes_per_s=5760"])
+    radio = radio_rig.RadioBuffer(v.port)
+    try:
+        out = ok(mavctl("udpout:127.0.0.1:%d" % radio.port, "watch", "--view", "--seconds", "4"))
+    finally:
+        radio.close()
+    radio_lines = [line for line in out.splitlines() if line.startswith("radio ")]
+    assert radio_lines and "vehicle sends at 50% (flow control)" in radio_lines[-1], out
