@@ -11,7 +11,12 @@ MAV_AUTOPILOT = 0  # MAV_AUTOPILOT_GENERIC
 SERVICES = ("status", "params", "commands", "missions", "inputs", "seed_telemetry", "streams", "ftp",
             "geography", "servos", "debug", "auth", "calibration", "seed_commands")  # inputs before streams: its slots stream by default
 STORAGE = __file__.rsplit("/", 2)[0] + "/storage"
+# Several links (here, `--link` repeated, or `--set links=SPEC,SPEC`) are routed between
+# (docs/routing.md): a ground station, a companion on a pty, a camera behind the vehicle.
 LINKS = ("udpout:127.0.0.1:14550",)
+ROUTES = 16  # the route table's size
+ROUTE_TIMEOUT_MS = 10000  # a route not heard from this long is forgotten
+PRIVATE_LINKS = ""  # link indexes nothing is forwarded to or from, "1,2"
 UDP_BYTES_PER_S = 200000
 MISSION_CAPACITY = 500
 FENCE_CAPACITY = 100

@@ -86,7 +86,8 @@ def build(board, opts, dog=None):
         from mavstack.watchdog import Guard  # only then (RAM)
 
         guard = ep.add(Guard(board.SERVICES))
-    specs = opts.get("links") or []
+    # --link, repeated; or --set links=SPEC,SPEC; or the profile's transports().
+    specs = opts.get("links") or [s for s in ep.options.get("links", "").split(",") if s]
     # --set udp_bytes_per_s=5760 makes UDP links pace themselves like a 57600 baud radio.
     udp_rate = ep.setting("UDP_BYTES_PER_S", 200000)
     if specs:

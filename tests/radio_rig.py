@@ -88,7 +88,7 @@ def params(m, timeout=20.0):
     return None
 
 
-def session(vehicle, seconds, flow=True, items=100):
+def session(vehicle, seconds, items=100):
     vport = vehicle.port
     radio = RadioBuffer(vport)
     m = None
@@ -125,7 +125,7 @@ def session(vehicle, seconds, flow=True, items=100):
         vehicle.check_alive()
         return dict(downloads, frames=radio.frames - start_frames, overflow=radio.overflow - start_overflow,
                     lowest_txbuf=radio.lowest_txbuf, flow_min=min(flows) if flows else 100,
-                    flow_reports=len(flows), flow=flow)
+                    flow_reports=len(flows))
     finally:
         if m is not None:
             m.close()

@@ -322,3 +322,17 @@ def test_route_steady_heap_locked_on_micropython(portable):
     lines = r.stdout.strip().splitlines()
     assert r.returncode == 0 and lines and lines[-1].startswith("OK"), r.stdout + r.stderr
     assert lines[-1].endswith(" requested=0"), lines[-1]
+
+
+def test_links_setting_opens_several(tmp_path):
+    import main
+
+    class Board:
+        NAME = "t"
+        DIALECT = "common"
+        SERVICES = ("status",)
+        STORAGE = str(tmp_path)
+
+    ep, _ = main.build(Board, {"links": [], "options": {"links": "udpout:127.0.0.1:9,udpout:127.0.0.1:10"}})
+    assert len(ep.links) == 2 and ep.router is not None
+    ep.close()
