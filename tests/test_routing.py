@@ -336,3 +336,42 @@ def test_links_setting_opens_several(tmp_path):
     ep, _ = main.build(Board, {"links": [], "options": {"links": "udpout:127.0.0.1:9,udpout:127.0.0.1:10"}})
     assert len(ep.links) == 2 and ep.router is not None
     ep.close()
+
+
+def test_a_signing_vehicle_forwards_what_passes_its_check_intact():
+    """With signing on, every frame must pass the vehicle's check before it is handled or
+    forwarded: one signed with its key is forwarded as it came (signature and all), one
+    signed with another key, or unsigned, goes nowhere (docs/routing.md)."""
+    from harness import Board
+    from mavstack.dialects import common
+    from mavstack.endpoint import Endpoint
+    from mavstack.services import compose
+    from mavstack.storage_ram import RamStorage
+
+    ep = Endpoint(common, VEHICLE, 1)
+    ep.board = Board
+    ep.options = {}
+    ep.storage = RamStorage(bytearray(8192))
+    ends = []
+    for i in range(3):
+        v, g = loop_pair(8192, name="loop%d" % i)
+        ep.add_link(v)
+        ends.append(g)
+    assert compose(ep, ("signing", "status")) is None
+    ep.add(Router())
+    key = bytes(range(32))
+    ep.services["signing"].set_key(key)
+    net = Net.__new__(Net)
+    net.ends, net.ep, net.buf = ends, ep, bytearray(8192)
+    net.b = type("B", (), {"now": ep.now})()
+    net.run(3)
+    [net.out(i) for i in range(3)]
+    good = packer(42, 191, signing_key=key)(ping())
+    other = packer(43, 191, signing_key=bytes(32 * [7]))(ping())
+    unsigned = packer(44, 191)(ping())
+    for f in (good, other, unsigned):
+        net.send(0, f)
+        net.run()
+    assert net.out(1) == [good] and net.out(2) == [good]
+    routes = [(s, c) for s, c, _, _ in ep.router.routes()]
+    assert (42, 191) in routes and (43, 191) not in routes and (44, 191) not in routes

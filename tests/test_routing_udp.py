@@ -74,6 +74,24 @@ def test_pings_across_three_links(vehicle):
     got = collect(peers)
     assert got == {"gcs": [], "companion": [(43, 1, 105, 42, 0, 2)], "other": []}, got
 
+    # Signed by the companion (the vehicle holds no key): passes as it came, signature and all.
+    comp.mav.signing.secret_key = bytes(range(32))
+    comp.mav.signing.sign_outgoing = True
+    comp.mav.signing.link_id = 5
+    comp.mav.signing.timestamp = 1
+    sent = [bytes(comp.mav.ping_encode(1, 107, 0, 0).pack(comp.mav))]
+    comp.mav.signing.sign_outgoing = False
+    comp.mav.signing.secret_key = None  # (with a key, pymavlink refuses what is unsigned)
+    comp.write(sent[0])
+    raw = []
+    deadline = time.time() + 1.0
+    while time.time() < deadline and not raw:
+        msg = gcs.recv_match(type="PING", blocking=True, timeout=0.1)
+        if msg is not None and msg.seq == 107:
+            raw.append(bytes(msg.get_msgbuf()))
+    assert sent and sent[0][2] & 1 and raw == sent, (sent, raw)
+    collect(peers, 0.3)
+
     v1 = connect(ports[2], 43, 1, mavlink1=True)  # the same peer, MAVLink 1
     v1.mav.ping_send(1, 106, 0, 0)
     got = collect(peers)
