@@ -41,18 +41,18 @@ def test_steps_down_and_up():
     assert report(b, 100) == 50  # the first report: a radio, start at half
     assert link.bytes_per_s == 2880
     assert report(b, 100) == 50  # room to spare, but the link did not use what it had
-    assert report(b, 100, busy=True) == 60
-    assert report(b, 70, busy=True) == 60  # between the marks: held
-    assert report(b, 40) == 45  # below the low-water mark: a quarter off
-    assert report(b, 10) == 22  # below half of it: halved
+    assert report(b, 100, busy=True) == 55
+    assert report(b, 70, busy=True) == 55  # between the marks: held
+    assert report(b, 40) == 41  # below the low-water mark: a quarter off
+    assert report(b, 10) == 20  # below half of it: halved
     for _ in range(20):
         report(b, 10)
     assert link.flow == 5 and link.bytes_per_s == 288  # never below 5%
-    for _ in range(12):
+    for _ in range(20):
         report(b, 100, busy=True)
     assert link.flow == 100 and link.bytes_per_s == 5760
-    assert flows[:6] == [50, 50, 60, 60, 45, 22] and flows[-1] == 100
-    assert link.radio_reports == 38
+    assert flows[:6] == [50, 50, 55, 55, 41, 20] and flows[-1] == 100
+    assert link.radio_reports == 46
 
 
 def test_streams_fit_to_the_scaled_budget():

@@ -46,7 +46,7 @@ _MAV_TYPE_GCS = const(6)
 _MSG_RADIO_STATUS = const(109)
 _MSG_NAMED_VALUE_INT = const(252)
 _FLOW_MIN = const(5)  # radio flow control: the budget never below 5% of the medium's
-_FLOW_UP = const(10)  # percentage points a report with room to spare gives back
+_FLOW_UP = const(5)  # percentage points a report with room to spare gives back
 _FLOW_NAME = b"LINK_FLOW"
 _BUSY_PCT = const(80)  # a link sending this much of its budget may be given more
 
