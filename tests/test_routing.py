@@ -375,3 +375,18 @@ def test_a_signing_vehicle_forwards_what_passes_its_check_intact():
     assert net.out(1) == [good] and net.out(2) == [good]
     routes = [(s, c) for s, c, _, _ in ep.router.routes()]
     assert (42, 191) in routes and (43, 191) not in routes and (44, 191) not in routes
+
+
+def test_two_paths_to_one_peer_do_not_loop(net):
+    """A companion heard on links 1 and 2 (two paths to it): its broadcast from one is not
+    sent back to it by the other; the station on link 0 gets it."""
+    comp = packer(42, 191)
+    net.send(1, comp(heartbeat(18)))
+    net.run()
+    net.send(2, comp(heartbeat(18)))
+    net.run()
+    net.out(0), net.out(1), net.out(2)
+    f = comp(ping())
+    net.send(1, f)
+    net.run()
+    assert net.out(0) == [f] and net.out(2) == []

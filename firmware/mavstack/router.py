@@ -53,10 +53,12 @@ class Router:
         if i < 0:
             return  # our own, looped back
         if msgid == _MSG_SYSTEM_TIME:
-            self._time(i, rx, link.index)
+            i = self._time(i, rx, link.index)
         if msgid == _MSG_RADIO_STATUS or msgid == _MSG_RADIO or self.private >> link.index & 1:
             return
-        mask = self._where(msgid, rx.payload) & ~(1 << link.index) & ~self.private
+        # Never to a link its sender was heard on (the arrival link among them): with two
+        # paths to one peer, a broadcast does not come back round.
+        mask = self._where(msgid, rx.payload) & ~self.links[i] & ~self.private
         if mask:
             self._forward(rx, mask)
 
@@ -115,13 +117,14 @@ class Router:
 
     def _time(self, i, rx, index):
         """SYSTEM_TIME: a time_boot_ms lower than its last one is a reboot, and the
-        system's routes are forgotten (then this sender learnt again)."""
+        system's routes are forgotten (then this sender learnt again) -> its entry."""
         p = rx.payload
         t = p[8] >> 2 | p[9] << 6 | p[10] << 14 | p[11] << 22  # time_boot_ms >> 2, < 2^30
         if 0 <= t < self.boot[i]:
             self.forget(rx.sysid)
             i = self._sender(rx, index)  # learnt again
         self.boot[i] = t
+        return i
 
     def _target(self, msgid):
         """Where the targets of a message id >= 256 sit: system offset + 1 | component
