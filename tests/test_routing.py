@@ -390,3 +390,9 @@ def test_two_paths_to_one_peer_do_not_loop(net):
     net.send(1, f)
     net.run()
     assert net.out(0) == [f] and net.out(2) == []
+
+
+def test_forwarding_rank_floor():
+    from mavstack import link
+
+    assert link._FLOOR_FILL == link._FLOOR[link.RANK_FILL]

@@ -31,6 +31,7 @@ _RANK_NEW = const(5)  # (by _auto only) answers to a sender not kept, within its
 # it for the stations kept, and a due stream frame (up to 64 bytes) goes at once while a
 # list keeps the credit at its floor.
 _FLOOR = (-128000, 0, 256000, 320000, 384000, 128000)
+_FLOOR_FILL = const(320000)  # _FLOOR[RANK_FILL], for forward()
 _BURST_MS = const(200)  # the bucket holds 200 ms of the link ...
 _MIN_CAP = const(700000)  # ... or RANK_OTHER's floor and a full MAVLink 2 frame
 _UNPACED = const(5000000)  # B/s: above this a link is not budgeted (and bps * ms stays small)
@@ -161,7 +162,7 @@ class Link:
         bps = self.bytes_per_s
         if bps > 0 and bps <= _UNPACED:
             self._refill()
-            if self.credit - n * 1000 < _FLOOR[RANK_FILL]:
+            if self.credit - n * 1000 < _FLOOR_FILL:
                 self.tx_held = (self.tx_held + 1) & TX_WRAP
                 return False
             self.credit -= n * 1000
