@@ -9,9 +9,11 @@ companion's HEARTBEAT, its SYSTEM_TIME (time_boot_ms past 2^30, growing) followe
 MAVLink 1 ATTITUDE, the camera's NAMED_VALUE_INT to the station; RADIO_STATUS from a
 radio on link 0 now and then (never forwarded). After a warm-up the rounds run twice:
 unlocked, counted with mem_total(), then under heap_lock(). Prints `OK rounds=N
-forwarded=N not_sent=N routes=N requested=0` (the locked run's figures; requested: bytes
-the unlocked run asked of the heap), or FAIL and the same when that is not 0.
+forwarded=N not_sent=N routes=N table=N requested=0` (the locked run's figures; table: the
+heap a 16-route table holds; requested: bytes the unlocked run asked of the heap), or FAIL
+and the same when that is not 0.
 """
+import gc
 import sys
 
 import micropython
@@ -30,7 +32,12 @@ class Net:
             v, g = loop_pair(8192, name="loop%d" % i)
             ep.add_link(v)
             self.ends.append(g)
-        self.router = ep.add(Router(16, 10000, 0))
+        gc.collect()
+        before = gc.mem_alloc()
+        router = Router(16, 10000, 0)
+        gc.collect()
+        self.table = gc.mem_alloc() - before  # the heap a 16-route table holds
+        self.router = ep.add(router)
         self.b = b
         self.buf = bytearray(512)
         gcs, cam, comp = b.gcs(255, 190), b.gcs(1, 100), b.gcs(42, 191)
@@ -107,8 +114,8 @@ def main():
         micropython.heap_unlock()
     routes = len(r.routes())
     ok = requested == 0 and r.forwarded - fwd0 > rounds
-    print("%s rounds=%d forwarded=%d not_sent=%d routes=%d requested=%d"
-          % ("OK" if ok else "FAIL", rounds, r.forwarded - fwd0, r.not_sent - not0, routes, requested))
+    print("%s rounds=%d forwarded=%d not_sent=%d routes=%d table=%d requested=%d"
+          % ("OK" if ok else "FAIL", rounds, r.forwarded - fwd0, r.not_sent - not0, routes, net.table, requested))
 
 
 main()
