@@ -73,6 +73,21 @@ def test_streams_fit_to_the_scaled_budget():
     assert link.flow == 12 and scaled < full * 0.3, (full, scaled)
 
 
+def test_only_a_radio_component_counts():
+    b = Bench(services=("status",))
+    link = b.ep.links[0]
+    link.medium_bps = link.bytes_per_s = 5760
+    for sysid, compid in ((255, 190), (1, 1), (51, 0)):
+        f = status(5, sysid, compid)
+        b.send_raw(f, len(f))
+        b.run(1, 1000)
+    assert link.flow == 100 and link.radio_reports == 0
+    f = status(5, 77, 68)  # another radio's system id, a radio's component
+    b.send_raw(f, len(f))
+    b.run(1, 1000)
+    assert link.flow == 50 and link.radio_reports == 1
+
+
 def test_off():
     b = Bench(services=("status",), options={"radio_flow": "0"})
     link = b.ep.links[0]

@@ -45,6 +45,7 @@ _NO_SLOT = const(-2)  # _slot: every slot kept by others
 _MSG_HEARTBEAT = const(0)
 _MAV_TYPE_GCS = const(6)
 _MSG_RADIO_STATUS = const(109)
+_COMP_RADIO = const(68)  # MAV_COMP_ID_TELEMETRY_RADIO (SiK: system 51)
 _MSG_NAMED_VALUE_INT = const(252)
 _FLOW_MIN = const(5)  # radio flow control: the budget never below 5% of the medium's
 _FLOW_UP = const(5)  # percentage points a report with room to spare gives back
@@ -118,7 +119,7 @@ class Link:
         self._slot = _UNKNOWN
         if msgid == _MSG_HEARTBEAT and payload[4] == _MAV_TYPE_GCS:
             self._keep()
-        elif msgid == _MSG_RADIO_STATUS and self._flow_on:
+        elif msgid == _MSG_RADIO_STATUS and self._flow_on and self.rx.compid == _COMP_RADIO:
             self._radio(payload[6])
         if self.endpoint.router is not None:
             self.endpoint.router.route(self, msgid)  # forwarded first (router.py)
