@@ -162,7 +162,8 @@ class Link:
         budget at RANK_FILL (docs/routing.md); False if not written."""
         bps = self.bytes_per_s
         if bps > 0 and bps <= _UNPACED:
-            self._refill()
+            if self._last != self.endpoint.now:
+                self._refill()
             if self.credit - n * 1000 < _FLOOR_FILL:
                 self.tx_held = (self.tx_held + 1) & TX_WRAP
                 return False

@@ -191,14 +191,16 @@ class Router:
 
     def _send(self, mask, n):
         links = self.ep.links
+        sent = 0
         i = 0
-        while i < len(links):
-            if mask >> i & 1:
-                if links[i].forward(self.frame, n):
-                    self.forwarded = (self.forwarded + 1) & 0x1FFFFFFF
-                else:
-                    self.not_sent = (self.not_sent + 1) & 0x1FFFFFFF
+        while mask and i < len(links):
+            if mask & 1 and links[i].forward(self.frame, n):
+                sent += 1
+            elif mask & 1:
+                self.not_sent = (self.not_sent + 1) & 0x1FFFFFFF
+            mask >>= 1
             i += 1
+        self.forwarded = (self.forwarded + sent) & 0x1FFFFFFF
 
     # --- the local rule (endpoint.for_us) and the table's upkeep ------------------------
     def unseen(self, compid):
