@@ -98,3 +98,47 @@ def test_pings_across_three_links(vehicle):
     assert got["gcs"] == got["companion"] == [(43, 1, 106, 0, 0, 1)], got
     v1.close()
     v.check_alive()
+
+
+def test_companion_on_a_serial_link_and_a_station_on_udp(vehicle):
+    """A companion computer on a pty (`serial:` link, 57600 baud) and a ground station on
+    UDP reach each other through the vehicle: HEARTBEATs, a command and its ACK; the
+    vehicle leaves the command to the companion."""
+    from pty_relay import PtyRelay
+
+    cable = PtyRelay(rate=0.0)
+    comp = None
+    try:
+        port = free_udp_port()
+        v = vehicle(links=["udpin:127.0.0.1:%d" % port, "serial:%s:57600" % cable.vehicle_dev])
+        gcs = connect(port, 255, 190)
+        comp = mavutil.mavlink_connection(cable.gcs_dev, baud=57600, source_system=42, source_component=191,
+                                          dialect="common")
+        seen = None
+        deadline = time.time() + 20
+        while seen is None and time.time() < deadline:
+            gcs.mav.heartbeat_send(6, 8, 0, 0, 0)
+            comp.mav.heartbeat_send(18, 8, 0, 0, 4)
+            seen = gcs.recv_match(type="HEARTBEAT", blocking=True, timeout=0.3,
+                                  condition="HEARTBEAT.get_srcSystem() == 42")
+            v.check_alive()
+        assert seen is not None and seen.type == 18, v.output()
+        # (the station's HEARTBEAT reached the companion too)
+        assert comp.recv_match(type="HEARTBEAT", blocking=True, timeout=5,
+                               condition="HEARTBEAT.get_srcSystem() == 255") is not None
+        gcs.mav.command_long_send(42, 191, 31000, 0, 1, 0, 0, 0, 0, 0, 0)  # MAV_CMD_USER_1
+        cmd = comp.recv_match(type="COMMAND_LONG", blocking=True, timeout=5)
+        assert cmd is not None and cmd.command == 31000 and cmd.get_srcSystem() == 255
+        comp.mav.command_ack_send(31000, 0, 0, 0, 255, 190)
+        deadline = time.time() + 5
+        acks = []
+        while time.time() < deadline and not any(a.get_srcSystem() == 42 for a in acks):
+            a = gcs.recv_match(type="COMMAND_ACK", blocking=True, timeout=0.2)
+            if a is not None:
+                acks.append(a)
+        assert [(a.get_srcSystem(), a.command, a.result) for a in acks] == [(42, 31000, 0)], acks
+        v.check_alive()
+    finally:
+        if comp is not None:
+            comp.close()
+        cable.close()
