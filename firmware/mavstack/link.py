@@ -206,8 +206,10 @@ class Link:
     def _busy(self):
         """Did the link send at least _BUSY_PCT % of its budget since the last report?"""
         dt = ticks_diff(self.endpoint.now, self._flow_at) // 10  # centiseconds
-        sent = (self.tx_bytes - self._flow_tx) & TX_WRAP
-        return dt > 0 and sent * 100 // dt >= self.bytes_per_s * _BUSY_PCT // 100
+        if dt <= 0:
+            return False
+        # Bytes a centisecond against the budget's (no int reaches 2^30).
+        return ((self.tx_bytes - self._flow_tx) & TX_WRAP) // dt >= self.bytes_per_s * _BUSY_PCT // 10000
 
     def _report_flow(self):
         """NAMED_VALUE_INT LINK_FLOW = the scale in percent, on this link (mavctl watch)."""

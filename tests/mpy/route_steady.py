@@ -7,7 +7,8 @@ Link 0 has a ground station (255/190), link 1 a camera of the vehicle's own syst
 station's broadcast PING, its COMMAND_LONG to the companion and to the camera, the
 companion's HEARTBEAT, its SYSTEM_TIME (time_boot_ms past 2^30, growing) followed by a
 MAVLink 1 ATTITUDE, the camera's NAMED_VALUE_INT to the station; RADIO_STATUS from a
-radio on link 0 now and then (never forwarded). After a warm-up the rounds run twice:
+radio on link 0 now and then (never forwarded; its txbuf low, very low and high in turn:
+radio flow control steps link 0's budget and reports LINK_FLOW). After a warm-up the rounds run twice:
 unlocked, counted with mem_total(), then under heap_lock(). Prints `OK rounds=N
 forwarded=N not_sent=N routes=N table=N requested=0` (the locked run's figures; table: the
 heap a 16-route table holds; requested: bytes the unlocked run asked of the heap), or FAIL
@@ -47,6 +48,7 @@ class Net:
         comp1.buf[off] = 1  # ATTITUDE: time_boot_ms 1, the rest zero
         self.att_v1 = bytearray(comp1.buf[: comp1.finish(30, 42, 191)])
         self.time = comp.frame(2, 0, 0x40000000)  # SYSTEM_TIME: time_boot_ms past 2^30
+        self.radio = radio.frame(109, 0, 0, 100, 90, 95, 10, 20)  # RADIO_STATUS, txbuf 95
         # (link index, builder, frame)
         self.frames = (
             (0, gcs, gcs.frame(4, 1234567, 9, 0, 0)),  # PING, broadcast
@@ -56,7 +58,7 @@ class Net:
             (2, comp, self.time),
             (0, gcs, gcs.command(512, 1.0, target_system=1, target_component=100)),
             (1, cam, cam.frame(252, 1, 7, b"RANGE")),  # NAMED_VALUE_INT
-            (0, radio, radio.frame(109, 0, 0, 100, 90, 50, 10, 20)),  # RADIO_STATUS
+            (0, radio, self.radio),
         )
 
     def send(self, i, g, f):
@@ -84,6 +86,9 @@ def steady(net, rounds):
 def one(net, f):
     if f[2] is net.time:
         grow(net.time)
+    elif f[2] is net.radio:
+        # txbuf (frame byte 16): low, very low, full in turn; flow control steps on each
+        net.radio[16] = 40 if net.radio[16] == 95 else 10 if net.radio[16] == 40 else 95
     net.send(f[0], f[1], f[2])
     if f[2] is net.time:
         net.ends[2].write(net.att_v1, len(net.att_v1))
@@ -113,6 +118,7 @@ def main():
     finally:
         micropython.heap_unlock()
     routes = len(r.routes())
+    assert net.b.ep.links[0].radio_reports > 0 and net.b.seen[252] > 0  # flow control ran
     ok = requested == 0 and r.forwarded - fwd0 > rounds
     print("%s rounds=%d forwarded=%d not_sent=%d routes=%d table=%d requested=%d"
           % ("OK" if ok else "FAIL", rounds, r.forwarded - fwd0, r.not_sent - not0, routes, net.table, requested))
