@@ -11,7 +11,12 @@ MAV_AUTOPILOT = 0  # MAV_AUTOPILOT_GENERIC
 SERVICES = ("status", "params", "commands", "missions", "inputs", "seed_telemetry", "streams", "ftp",
             "geography", "servos", "debug", "auth", "calibration", "seed_commands")  # inputs before streams: its slots stream by default
 STORAGE = __file__.rsplit("/", 2)[0] + "/storage"
+# Several links (here, `--link` repeated, or `--set links=SPEC,SPEC`) are routed between
+# (docs/routing.md): a ground station, a companion on a pty, a camera behind the vehicle.
 LINKS = ("udpout:127.0.0.1:14550",)
+ROUTES = 16  # the route table's size
+ROUTE_TIMEOUT_MS = 10000  # a route not heard from this long is forgotten
+PRIVATE_LINKS = ""  # link indexes nothing is forwarded to or from, "1,2"
 UDP_BYTES_PER_S = 200000
 MISSION_CAPACITY = 500
 FENCE_CAPACITY = 100
@@ -40,7 +45,7 @@ MODE_NUMBERING = "auto"  # per link, as its ground station reads modes (modes.py
 # inputs (mavstack/services/inputs/)
 INPUT_TIMEOUT_MS = 1000  # an input that stops this long is lost: on_input_lost (the simulator's failsafe)
 RC_OVERRIDE_TIMEOUT_MS = 3000  # an RC override channel not set again this long goes back to the radio
-RAM_BUDGET = 424 * 1024  # heap the vehicle may hold after start-up (main.py reports it): every service and the simulator (its flight modes, commands and failsafes ~40 KB), 64-bit pointers
+RAM_BUDGET = 432 * 1024  # heap the vehicle may hold after start-up (main.py reports it): every service and the simulator (its flight modes, commands and failsafes ~40 KB), routing, 64-bit pointers
 WATCHDOG_MS = 2000  # under host_tools/watchdog.py: it restarts the vehicle when the loop stops this long
 
 

@@ -86,7 +86,8 @@ def build(board, opts, dog=None):
         from mavstack.watchdog import Guard  # only then (RAM)
 
         guard = ep.add(Guard(board.SERVICES))
-    specs = opts.get("links") or []
+    # --link, repeated; or --set links=SPEC,SPEC; or the profile's transports().
+    specs = opts.get("links") or [s for s in ep.options.get("links", "").split(",") if s]
     # --set udp_bytes_per_s=5760 makes UDP links pace themselves like a 57600 baud radio.
     udp_rate = ep.setting("UDP_BYTES_PER_S", 200000)
     if specs:
@@ -99,6 +100,7 @@ def build(board, opts, dog=None):
             if baud:
                 transport.bytes_per_s = baud // 10
             ep.add_link(transport)
+    _routing(ep)
     if dog is not None:
         dog.feed()
     # Each after the services it needs (in safe mode, those the guard leaves).
@@ -115,6 +117,24 @@ def build(board, opts, dog=None):
         app = board.application(ep)
     _check_ram(ep, board)
     return ep, app
+
+
+def _routing(ep):
+    """Routing between the links (mavstack/router.py): on by default with more than one
+    link (ROUTING, --set routing=0/1); ROUTES entries, forgotten after ROUTE_TIMEOUT_MS of
+    silence; PRIVATE_LINKS: link indexes ("1,2") nothing is forwarded to or from, as is a
+    transport whose `private` is True. Reference: docs/routing.md."""
+    if not ep.setting("ROUTING", len(ep.links) > 1):
+        return
+    from mavstack.router import Router  # only then (RAM)
+
+    private = 0
+    for i in str(ep.setting("PRIVATE_LINKS", "")).replace(",", " ").split():
+        private |= 1 << int(i)
+    for link in ep.links:
+        if getattr(link.transport, "private", False):
+            private |= 1 << link.index
+    ep.add(Router(ep.setting("ROUTES", 16), ep.setting("ROUTE_TIMEOUT_MS", 10000), private))
 
 
 def _check_ram(ep, board):

@@ -18,6 +18,8 @@ import os
 import sys
 import xml.etree.ElementTree as ET
 
+from mavgen_targets import target_lines
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DIALECTS = os.path.join(ROOT, "firmware", "mavstack", "dialects")
 
@@ -261,16 +263,13 @@ def render_runtime(messages, name, source_label):
     out.append("# id -> struct format of the full MAVLink 2 payload (wire order, extensions last)")
     if len(msgs) < ID_TABLE_MIN:
         out += ["FMT = {"] + ["    %d: %r," % (m.id, m.fmt) for m in msgs] + ["}"]
-        return "\n".join(out) + "\n"
-    # Looked up at start-up only: two constant tuples (flash, when frozen), not a dict.
-    out.insert(1, "from mavstack.dialects.table import IdTable\n")
-    out.append("FMT = IdTable((")
-    for k in range(0, len(msgs), 12):
-        out.append("    %s," % ", ".join(str(m.id) for m in msgs[k : k + 12]))
-    out.append("), (")
-    for m in msgs:
-        out.append("    %r," % m.fmt)
-    out.append("))")
+    else:
+        # Looked up at start-up only: two constant tuples (flash, when frozen), not a dict.
+        out.insert(1, "from mavstack.dialects.table import IdTable\n")
+        out.append("FMT = IdTable((")
+        out += ["    %s," % ", ".join(str(m.id) for m in msgs[k : k + 12]) for k in range(0, len(msgs), 12)]
+        out += ["), ("] + ["    %r," % m.fmt for m in msgs] + ["))"]
+    out += target_lines(msgs)
     return "\n".join(out) + "\n"
 
 

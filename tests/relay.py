@@ -63,9 +63,13 @@ class Relay:
                 elif self.gcs is not None:
                     self.forward(TO_GCS, self.gcs_sock, data, self.gcs)
             now = time.time()
+            self.tick(now)
             while self._later and self._later[0][0] <= now:
                 _, _, sock, data, addr = heapq.heappop(self._later)
                 self.send(sock, data, addr)
+
+    def tick(self, now):
+        """Called every 50 ms at most (subclasses with something periodic)."""
 
     def close(self):
         self._stop = True

@@ -92,7 +92,8 @@ def test_seed_dialect_is_the_2012_message_set():
 def test_runtime_module_holds_only_the_tables():
     for name in DIALECTS:
         mod = import_file("rt_" + name, DIALECTS[name][1])
-        assert sorted(k for k in vars(mod) if not k.startswith("__")) == ["CRC_LEN", "FMT", "IdTable"]
+        assert sorted(k for k in vars(mod) if not k.startswith("__")) == [
+            "CRC_LEN", "FMT", "IdTable", "TARGETS", "TARGETS_HIGH"]
         # FMT, read at start-up only: constant tuples (flash when frozen) read like a dict
         assert isinstance(mod.CRC_LEN, dict) and not isinstance(mod.FMT, dict)
         assert sorted(mod.FMT) == sorted(mod.CRC_LEN) == [k for k, _ in mod.FMT.items()]
@@ -100,6 +101,24 @@ def test_runtime_module_holds_only_the_tables():
         assert 0x1000000 not in mod.FMT and mod.FMT.get(-1, "none") == "none"
         with pytest.raises(KeyError):
             mod.FMT[0x1000000]
+
+
+@pytest.mark.parametrize("name", sorted(DIALECTS))
+def test_routing_targets_match_pymavlink(name, tmp_path_factory):
+    """TARGETS / TARGETS_HIGH (mavstack/router.py) say where target_system and
+    target_component sit, as MAVLink's C library's message entries do."""
+    _, parsed = reference(name, tmp_path_factory)
+    ours = import_file("ours_" + name, DIALECTS[name][1])
+    high = {}
+    for i in range(0, len(ours.TARGETS_HIGH), 5):
+        r = ours.TARGETS_HIGH[i:i + 5]
+        high[r[0] | r[1] << 8 | r[2] << 16] = (r[3], r[4])
+    for mid, p in parsed.items():
+        want = (p.target_system_ofs + 1 if p.message_flags & mavparse.FLAG_HAVE_TARGET_SYSTEM else 0,
+                p.target_component_ofs + 1 if p.message_flags & mavparse.FLAG_HAVE_TARGET_COMPONENT else 0)
+        got = tuple(ours.TARGETS[2 * mid:2 * mid + 2]) if mid < 256 else high.get(mid, (0, 0))
+        assert got == want, "%s %d" % (p.name, mid)
+    assert set(high) <= set(parsed)
 
 
 @pytest.mark.parametrize("name", sorted(DIALECTS))

@@ -136,6 +136,7 @@ STEADY = (
     ("inputs_steady.py", [1500]),  # every pilot input, loss, echoes, HIL_CONTROLS
     ("seed_steady.py", ["common", 3]),  # geography, debug, servos, auth, calibration, seed commands
     ("faults_steady.py", [100]),  # a raising handler and tick: contained, params/missions/streams go on
+    ("route_steady.py", [3000]),  # frames forwarded between three links (router.py)
     ("fuzz_found.py", ["-"]),  # what tests/test_mcu_fuzz.py found: ints past 2^30, huge floats
 )
 

@@ -56,6 +56,7 @@ class Endpoint:
         self.producers = {}  # msgid -> send(link): one message now (REQUEST_MESSAGE, streams)
         self.commands = {}  # MAV_CMD id -> handler(cmd) -> MAV_RESULT (services/commands/)
         self.operator = None  # gate with allows(link), set by operator control
+        self.router = None  # routing between links (router.py), added by main.py
 
     def add_link(self, transport, version=0):
         link = Link(self, transport, len(self.links), version)
@@ -124,10 +125,13 @@ class Endpoint:
         return self.dialect.FMT[msgid]
 
     def for_us(self, target_system, target_component):
-        """True when a message's target is this vehicle (0 is broadcast)."""
-        return (target_system == 0 or target_system == self.sysid) and (
-            target_component == 0 or target_component == self.compid
-        )
+        """True when a message's target is this vehicle (0 is broadcast): our system and
+        component 0 or ours, or, with routing, a component of ours heard on no link."""
+        if target_system != 0 and target_system != self.sysid:
+            return False
+        if target_component == 0 or target_component == self.compid:
+            return True
+        return self.router is not None and self.router.unseen(target_component)
 
     def allows(self, link):
         """May the ground station on this link change parameters, missions or arm?"""

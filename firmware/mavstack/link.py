@@ -11,6 +11,7 @@ Reference (the ranks, send, can_send, the senders' shares): docs/core.md.
 from .compat import const, ticks_diff, ticks_add
 from .parser import Parser
 from .encoder import Encoder
+from .kernels import copy
 
 _RX_CHUNK = const(512)
 _RX_READS_PER_POLL = const(8)  # bounds the time one busy link can take from a poll
@@ -30,6 +31,7 @@ _RANK_NEW = const(5)  # (by _auto only) answers to a sender not kept, within its
 # it for the stations kept, and a due stream frame (up to 64 bytes) goes at once while a
 # list keeps the credit at its floor.
 _FLOOR = (-128000, 0, 256000, 320000, 384000, 128000)
+_FLOOR_FILL = const(320000)  # _FLOOR[RANK_FILL], for forward()
 _BURST_MS = const(200)  # the bucket holds 200 ms of the link ...
 _MIN_CAP = const(700000)  # ... or RANK_OTHER's floor and a full MAVLink 2 frame
 _UNPACED = const(5000000)  # B/s: above this a link is not budgeted (and bps * ms stays small)
@@ -42,6 +44,13 @@ _UNKNOWN = const(-1)  # _slot: the sender not looked up yet
 _NO_SLOT = const(-2)  # _slot: every slot kept by others
 _MSG_HEARTBEAT = const(0)
 _MAV_TYPE_GCS = const(6)
+_MSG_RADIO_STATUS = const(109)
+_COMP_RADIO = const(68)  # MAV_COMP_ID_TELEMETRY_RADIO (SiK: system 51)
+_MSG_NAMED_VALUE_INT = const(252)
+_FLOW_MIN = const(5)  # radio flow control: the budget never below 5% of the medium's
+_FLOW_UP = const(5)  # percentage points a report with room to spare gives back
+_FLOW_NAME = b"LINK_FLOW"
+_BUSY_PCT = const(80)  # a link sending this much of its budget may be given more
 
 
 class Link:
@@ -57,8 +66,20 @@ class Link:
         self.tx = Encoder(crc_len, version or 1)
         self.txbuf = self.tx.buf
         self.bytes_per_s = transport.bytes_per_s
+        # Radio flow control (docs/routing.md): the radio's RADIO_STATUS txbuf (% free)
+        # scales the budget, self.flow percent of the medium's rate (medium_bps).
+        self.medium_bps = transport.bytes_per_s
+        self.flow = 100
+        self.radio_reports = 0
+        self._flow_on = endpoint.setting("RADIO_FLOW", True)
+        self._low = endpoint.setting("RADIO_LOW_WATER", 50)
+        self._high = endpoint.setting("RADIO_HIGH_WATER", 90)
+        self._start = endpoint.setting("RADIO_FLOW_START", 50)
+        self._flow_tx = 0
+        self._flow_at = endpoint.now
         self.tx_bytes = 0
         self.tx_dropped = 0
+        self.fwd_frames = 0  # frames routed here from other links (router.py)
         self._rxbuf = bytearray(getattr(transport, "rx_chunk", _RX_CHUNK))
         # A transport that wants to know which of its datagrams held a valid frame (UDP
         # servers choose their peers by it): heard(now), bound once here.
@@ -98,6 +119,10 @@ class Link:
         self._slot = _UNKNOWN
         if msgid == _MSG_HEARTBEAT and payload[4] == _MAV_TYPE_GCS:
             self._keep()
+        elif msgid == _MSG_RADIO_STATUS and self._flow_on and self.rx.compid == _COMP_RADIO:
+            self._radio(payload[6])
+        if self.endpoint.router is not None:
+            self.endpoint.router.route(self, msgid)  # forwarded first (router.py)
         self.endpoint.dispatch(self, msgid, payload)
         self._in_frame = False
         self._slot = _UNKNOWN
@@ -131,6 +156,74 @@ class Link:
         """Transmit a prepacked payload[0:n] (telemetry slots keep theirs ready)."""
         self.tx.load(payload, n, msgid)
         return self.send(msgid, compid)
+
+    def forward(self, buf, n):
+        """Write a frame routed from another link, buf[0:n] as it came, paid from the
+        budget at RANK_FILL (docs/routing.md); False if not written."""
+        bps = self.bytes_per_s
+        if bps > 0 and bps <= _UNPACED:
+            if self._last != self.endpoint.now:
+                self._refill()
+            if self.credit - n * 1000 < _FLOOR_FILL:
+                self.tx_held = (self.tx_held + 1) & TX_WRAP
+                return False
+            self.credit -= n * 1000
+        if self.transport.write(buf, n) != n:
+            self.tx_dropped = (self.tx_dropped + 1) & TX_WRAP
+            return False
+        self.tx_bytes = (self.tx_bytes + n) & TX_WRAP
+        self.tx_low = (self.tx_low + n) & TX_WRAP  # yields to streams, as lists do
+        self.fwd_frames = (self.fwd_frames + 1) & TX_WRAP
+        return True
+
+    # --- radio flow control (as ArduPilot's handle_radio_status) ---------------------
+    def _radio(self, txbuf):
+        """A RADIO_STATUS on this link: its radio's transmit buffer is txbuf % free. The
+        first one starts the budget at RADIO_FLOW_START %; then below the low-water mark
+        it steps down (by a half below half of it, else a quarter), and above the
+        high-water mark, if the link used most of it since the last report, back up;
+        streams fit to it within a second (docs/routing.md)."""
+        bps = self.medium_bps
+        if bps <= 0 or bps > _UNPACED:
+            return
+        was = flow = self.flow
+        if self.radio_reports == 0:
+            flow = self._start
+        elif txbuf < self._low // 2:
+            flow = flow // 2
+        elif txbuf < self._low:
+            flow = flow * 3 // 4
+        elif txbuf > self._high and self._busy():
+            flow += _FLOW_UP
+        self.radio_reports = (self.radio_reports + 1) & TX_WRAP
+        self._flow_tx = self.tx_bytes
+        self._flow_at = self.endpoint.now
+        self.flow = _FLOW_MIN if flow < _FLOW_MIN else 100 if flow > 100 else flow
+        self.bytes_per_s = bps * self.flow // 100 or 1
+        if self.flow < 100 or was < 100:
+            self._report_flow()
+
+    def _busy(self):
+        """Did the link send at least _BUSY_PCT % of its budget since the last report?"""
+        dt = ticks_diff(self.endpoint.now, self._flow_at) // 10  # centiseconds
+        if dt <= 0:
+            return False
+        # Bytes a centisecond against the budget's (no int reaches 2^30).
+        return ((self.tx_bytes - self._flow_tx) & TX_WRAP) // dt >= self.bytes_per_s * _BUSY_PCT // 10000
+
+    def _report_flow(self):
+        """NAMED_VALUE_INT LINK_FLOW = the scale in percent, on this link (mavctl watch)."""
+        ep = self.endpoint
+        if not ep.has(_MSG_NAMED_VALUE_INT):
+            return
+        off = self.tx.clear(18)
+        if ep._clock is not None:
+            ep._clock.stamp_ms(self.txbuf, off)
+        self.txbuf[off + 4] = self.flow
+        copy(self.txbuf, _FLOW_NAME, off + 8, 9)
+        self.rank = RANK_BULK
+        self.send(_MSG_NAMED_VALUE_INT)
+        self.rank = RANK_AUTO
 
     # --- the budget (small functions: see docs/design.md) -----------------------------
     def can_send(self, nbytes, rank):

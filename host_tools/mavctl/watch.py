@@ -20,6 +20,7 @@ LINE_VIEW_S = 1.0      # how often --view prints in a pipe
 RATE_WINDOW_S = 5.0    # rates and drop rate are measured over this much recent time
 STATUSTEXTS = 5        # how many of the vehicle's last messages the view shows
 RADIO_STATUS = "RADIO_STATUS"
+LINK_FLOW = "LINK_FLOW"  # the vehicle's NAMED_VALUE_INT: its link's budget in percent (radio flow control)
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 GPS_FIX = {0: "no GPS", 1: "no fix", 2: "2D fix", 3: "3D fix", 4: "DGPS", 5: "RTK float",
            6: "RTK fixed", 7: "static", 8: "PPP"}
@@ -94,6 +95,7 @@ class WatchState:
         self.counts = {}
         self.link = LinkQuality()
         self.texts = []            # (when, severity, text), newest last
+        self.flow = None           # (the vehicle's LINK_FLOW percent, when)
 
     def feed(self, msg, now):
         kind = msg.get_type()
@@ -103,6 +105,8 @@ class WatchState:
         self.rates.add(now, kind)
         if kind != RADIO_STATUS:  # radios number their own frames
             self.link.frame(msg, now)
+        if kind == "NAMED_VALUE_INT" and msg.name == LINK_FLOW:
+            self.flow = (msg.value, now)
         if kind == "STATUSTEXT":
             self.texts.append((now, msg.severity, msg.text))
             del self.texts[:-STATUSTEXTS]
@@ -184,9 +188,14 @@ class WatchState:
     def radio_line(self, now):
         r = self._get(RADIO_STATUS, now, stale=10.0)
         if r is None:
-            return "radio    (no RADIO_STATUS: not a radio link, or the radio does not send it)"
-        return ("radio    rssi %d/%d  noise %d/%d (local/remote)  txbuf %d%%  rx errors %d  fixed %d"
-                % (r.rssi, r.remrssi, r.noise, r.remnoise, r.txbuf, r.rxerrors, r.fixed))
+            text = "radio    (no RADIO_STATUS: not a radio link, or the radio does not send it)"
+        else:
+            text = ("radio    rssi %d/%d  noise %d/%d (local/remote)  txbuf %d%%  rx errors %d  fixed %d"
+                    % (r.rssi, r.remrssi, r.noise, r.remnoise, r.txbuf, r.rxerrors, r.fixed))
+        if self.flow is not None and now - self.flow[1] <= 10.0:
+            # The vehicle's radio flow control: its link's budget, streams with it.
+            text += "  vehicle sends at %d%% (flow control)" % self.flow[0]
+        return text
 
     def rate_lines(self, now, room=None):
         counts, span = self.rates.totals(now)
