@@ -136,6 +136,7 @@ STEADY = (
     ("inputs_steady.py", [1500]),  # every pilot input, loss, echoes, HIL_CONTROLS
     ("seed_steady.py", ["common", 3]),  # geography, debug, servos, auth, calibration, seed commands
     ("faults_steady.py", [100]),  # a raising handler and tick: contained, params/missions/streams go on
+    ("peripheral_steady.py", [2000]),  # a peripheral: sysid followed, its output, camera, commands
     ("fuzz_found.py", ["-"]),  # what tests/test_mcu_fuzz.py found: ints past 2^30, huge floats
 )
 

@@ -5,10 +5,16 @@ SYSID_WAIT_MS), the HEARTBEAT of a component that is no autopilot, its parameter
 for component 0 and set and read by component, commands (REQUEST_MESSAGE, the
 application's own, none answered for other components), DISTANCE_SENSOR and
 NAMED_VALUE_INT out; the camera's discovery and image capture."""
+import os
 import struct
 import time
 
+import pytest
+
+from conftest import ROOT, run_mpy
 from vehicle import recv
+
+MPY = os.path.join(ROOT, "tests", "mpy")
 
 AUTOPILOT = (7, 1)  # the autopilot the peripheral follows
 GCS = (255, 190)
@@ -228,3 +234,13 @@ def test_camera_discovery_and_capture(vehicle):
         pass
     assert recv(m, "CAMERA_IMAGE_CAPTURED", 0.8) is None
     v.check_alive()
+
+
+@pytest.mark.parametrize("portable", ["0", "1"])
+def test_steady_state_allocates_nothing(portable, monkeypatch):
+    # tests/mpy/peripheral_steady.py; the emulated boards run it too (test_mcu.py STEADY).
+    monkeypatch.setenv("MAVSTACK_PORTABLE", portable)
+    r = run_mpy(os.path.join(MPY, "peripheral_steady.py"), 3000, path=[MPY], timeout=300)
+    lines = r.stdout.strip().splitlines()
+    assert r.returncode == 0 and lines and lines[-1].startswith("OK "), r.stdout + r.stderr
+    assert " requested=0" in lines[-1] and "silent=0 sysid=7" in lines[-1], lines[-1]

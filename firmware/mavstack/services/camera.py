@@ -10,7 +10,8 @@ Reference: docs/services/peripheral.md#camera
 """
 from struct import pack_into
 
-from ..compat import const, ticks_diff, ticks_add, heap_open, heap_close
+from ..compat import const, ticks_diff, ticks_add
+from ..kernels import copy, zero
 
 NEEDS = ("commands",)
 
@@ -44,7 +45,7 @@ class Camera:
         self.left = 0  # images still to take at the interval, -1: until stopped
         self._next = 0
         self._announce = 0  # CAMERA_IMAGE_CAPTURED owed (the last image's) after the ACK
-        self._interval_s = 0.0
+        self._interval = bytearray(4)  # the interval's float32, as IMAGE_START_CAPTURE sent it
         self._info = bytearray(_INFO_LEN)
         pack_into("<IIfffIHHH", self._info, 0, 0, 0, focal_mm, sensor_mm[0], sensor_mm[1],
                   _CAP_CAPTURE_IMAGE, resolution[0], resolution[1], 0)
@@ -71,7 +72,7 @@ class Camera:
         commands[_CMD_REQUEST_CAMERA_SETTINGS] = self._request_settings
         commands[_CMD_REQUEST_CAMERA_CAPTURE_STATUS] = self._request_status
 
-    # --- commands (rare: they may allocate, within heap_open) --------------------------
+    # --- commands -------------------------------------------------------------------------
     def _request_information(self, cmd):
         return self._reply(cmd, _MSG_CAMERA_INFORMATION)
 
@@ -91,33 +92,29 @@ class Camera:
         return _ACCEPTED
 
     def _start(self, cmd):
-        # param2: interval (s), param3: total images (0: until stopped), param4: sequence
-        depth = heap_open()
-        try:
-            return self._start_at(cmd)
-        finally:
-            heap_close(depth)
-
-    def _start_at(self, cmd):
-        interval = cmd.float(2) if cmd.finite(2) else 0.0
+        # param2: interval (s), param3: total images (0: until stopped), param4: sequence.
+        # Read without floats (a float is a heap object on MicroPython).
+        o = cmd._offset(2)
+        p = cmd.payload
+        ms = _ms(p, o) if cmd.finite(2) else 0
         total = cmd.int(3) if cmd.finite(3) else 1
-        if interval < 0 or total < 0 or (total != 1 and interval <= 0):
+        if p[o + 3] & 0x80 and ms or total < 0 or (total != 1 and ms <= 0):
             return _DENIED
         if self.interval_ms:
             return _TEMPORARILY_REJECTED  # capturing already: stop first
         if not self._shoot():
             return _TEMPORARILY_REJECTED
         if total != 1:
-            self.interval_ms = max(1, int(interval * 1000))
-            self._interval_s = interval
+            self.interval_ms = ms
+            copy(self._interval, p, o << 10, 4)  # for CAMERA_CAPTURE_STATUS, as sent
             self.left = total - 1 if total else -1
-            self._next = ticks_add(self.ep.now, self.interval_ms)
+            self._next = ticks_add(self.ep.now, ms)
         return _ACCEPTED
 
     def _stop(self, cmd):
         self.interval_ms = 0
         self.left = 0
-        self._interval_s = 0.0
+        zero(self._interval, 0, 4)
         return _ACCEPTED
 
     def _shoot(self):
@@ -164,7 +161,7 @@ class Camera:
         off = link.tx.clear(_STATUS_LEN)
         buf = link.txbuf
         self.ep.clock.stamp_ms(buf, off)
-        pack_into("<f", buf, off + 4, self._interval_s)
+        copy(buf, self._interval, off + 4, 4)  # (from 0)  # image_interval
         buf[off + 16] = 3 if self.interval_ms else 0  # image_status: interval capturing, or idle
         pack_into("<i", buf, off + 18, self.images)
         return link.send(_MSG_CAMERA_CAPTURE_STATUS)
@@ -174,6 +171,20 @@ class Camera:
         self.ep.clock.stamp_unix(p, 0)
         self.ep.clock.stamp_ms(p, 8)
         return link.send_payload(_MSG_CAMERA_IMAGE_CAPTURED, p, _CAPTURED_LEN)
+
+
+def _ms(p, o):
+    """The float32 of seconds at p[o] -> whole ms (its sign ignored; rounded, at most
+    1000 s), in small ints: 16 bits of mantissa, times 1000, shifted."""
+    e = (p[o + 3] & 0x7F) << 1 | p[o + 2] >> 7
+    if e == 0:
+        return 0
+    v = (((p[o + 2] & 0x7F) | 0x80) << 8 | p[o + 1]) * 1000  # mantissa * 2^15, below 2^26
+    s = e - 142  # value = mantissa * 2^(e - 127 - 15)
+    if s > 4:
+        return 1000000
+    v = v << s if s >= 0 else ((v + (1 << (-s - 1))) >> -s if s > -31 else 0)  # rounded
+    return v if v < 1000000 else 1000000
 
 
 def _text(buf, off, s, n):
