@@ -41,6 +41,8 @@ class Rangefinder:
         self.step = 3
         self._next = ep.now
         self._next_count = ep.now
+        self.sensor = self.periph.distance_sensor(20, 700)
+        self.count = self.periph.named_int("RNG_COUNT")
         self._configure()
         if self.params is not None:
             self.params.on_change = self._changed
@@ -50,11 +52,10 @@ class Rangefinder:
         return int(self.params.get(name)) if self.params is not None else default
 
     def _configure(self):
-        # Start-up and a parameter set (rare): the slot made again with the new settings.
+        # Start-up and a parameter set (rare, the heap open): the slot takes the settings.
         self.period = 1000 // max(1, self._get("RNGFND_RATE_HZ", 10))
-        self.sensor = self.periph.distance_sensor(self._get("RNGFND_MIN_CM", 20), self._get("RNGFND_MAX_CM", 700),
-                                                  self._get("RNGFND_TYPE", 0), 0, self._get("RNGFND_ORIENT", 25))
-        self.count = self.periph.named_int("RNG_COUNT")
+        self.sensor.configure(self._get("RNGFND_MIN_CM", 20), self._get("RNGFND_MAX_CM", 700),
+                              self._get("RNGFND_TYPE", 0), 0, self._get("RNGFND_ORIENT", 25))
 
     def _changed(self, name, value):
         if name.startswith("RNGFND_"):

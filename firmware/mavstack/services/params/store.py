@@ -8,7 +8,7 @@ under a Guard instead of try.
 
 Reference: docs/services/params.md
 """
-from ...compat import const, ticks_diff
+from ...compat import const, ticks_diff, heap_open, heap_close
 
 FILE = "params"
 
@@ -135,6 +135,15 @@ class ParamStore:
         """A value changed: dirty, saved PARAM_AUTOSAVE_MS from now if that is set."""
         self.dirty = True
         self._changed_at = self.ep.now
+
+    def _tell(self, i):
+        """on_change(name, value): made for the application, a rare event, so on a board
+        that locks its heap the lock is opened for it."""
+        depth = heap_open()
+        try:
+            self.on_change(self.name(i), self.value(i))
+        finally:
+            heap_close(depth)
 
     def _autosave(self, now):
         if self.autosave_ms and ticks_diff(now, self._changed_at) >= self.autosave_ms:

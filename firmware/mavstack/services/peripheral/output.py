@@ -46,8 +46,13 @@ class DistanceSensor(_Slot):
         self.ep = ep
         self.n = _DISTANCE_LEN
         self.payload = bytearray(_DISTANCE_LEN)
+        self.configure(min_cm, max_cm, kind, sensor_id, orientation)
+
+    def configure(self, min_cm, max_cm, kind, sensor_id, orientation):
+        """The sensor's range, type, id and orientation (a parameter set: in place)."""
         # time_boot_ms, min, max, current; type, id, orientation, covariance (255: unknown)
-        pack_into("<IHHHBBBB", self.payload, 0, 0, min_cm, max_cm, 0, kind, sensor_id, orientation, 255)
+        pack_into("<HH", self.payload, 4, min_cm, max_cm)
+        pack_into("<BBBB", self.payload, 10, kind, sensor_id, orientation, 255)
 
     def send(self, distance_cm, quality=0):
         """current_distance in cm (UINT16_MAX: no reading), signal_quality 0-100 (0:
