@@ -99,9 +99,10 @@ def build(board, opts, dog=None):
     if dog is not None:
         dog.feed()
     # Each after the services it needs (in safe mode, those the guard leaves).
-    why = compose(ep, board.SERVICES if guard is None else guard.services)
-    if not why and ep.sysid == 0 and "peripheral" not in ep.services:
+    why = None
+    if ep.sysid == 0 and "peripheral" not in board.SERVICES:
         why = 'SYSID "follow" needs the peripheral service: add it to SERVICES'
+    why = why or compose(ep, board.SERVICES if guard is None else guard.services)
     if why:  # the profile's SERVICES are wrong: say so in one line, and stop
         print("mavstack: board %s: %s" % (board.NAME, why))
         sys.exit(1)
