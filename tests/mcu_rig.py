@@ -173,7 +173,10 @@ class EmulatedBoard:
         got = b""
         end = time.time() + timeout
         while time.time() < end:
-            got += s.read(max(1, s.in_waiting))
+            if not s.in_waiting:  # (a read would wait for ever: a board that never gets there)
+                time.sleep(0.05)
+                continue
+            got += s.read(s.in_waiting)
             m = re.search(rb"mavstack: \w+ ready[^\n]*\n", got)
             if m:
                 break

@@ -38,7 +38,9 @@ def test_rangefinder_peripheral_on_the_m0():
     os.environ["MAVLINK20"] = "1"
     from pymavlink import mavutil
 
-    with EmulatedBoard(BOARD) as b:
+    # bench/bench_mcu.py bisects the heap size with MCU_PERIPHERAL_HEAP_KB.
+    heap_kb = int(os.environ.get("MCU_PERIPHERAL_HEAP_KB", "0")) or EmulatedBoard.DEFAULT_HEAP_KB
+    with EmulatedBoard(BOARD, heap_kb) as b:
         pty, ready = b.start_peripheral()
         held = re.search(r"ready, (\d+) KB of heap in use \(budget (\d+) KB\)", ready)
         assert held and int(held.group(1)) <= int(held.group(2)), ready
