@@ -100,3 +100,29 @@ def test_rangefinder_peripheral_on_the_m0():
             assert hb is not None  # still alive, heap locked all along
         finally:
             m.close()
+
+
+def test_the_unix_vehicle_on_the_m0_peripherals_pty(tmp_path):
+    """What the end-to-end test through a routing vehicle builds on: the unix vehicle opens
+    the emulated M0's UART pty as a serial link (`--link serial:PTY:115200`); the
+    peripheral hears its HEARTBEAT and takes its system id (5), which it still stamps on
+    its frames once the vehicle has gone and pymavlink opens the pty instead."""
+    _gate()
+    os.environ["MAVLINK20"] = "1"
+    from pymavlink import mavutil
+    from vehicle import Vehicle
+
+    with EmulatedBoard(BOARD) as b:
+        pty, _ready = b.start_peripheral()
+        v = Vehicle(tmp_path / "storage", links=["serial:%s:115200" % pty], args=["--sysid", "5"]).start()
+        try:
+            time.sleep(4)  # a few of the vehicle's HEARTBEATs (1 Hz) reach the peripheral
+            v.check_alive()
+        finally:
+            v.stop()
+        m = mavutil.mavlink_connection(pty, baud=115200, source_system=255, source_component=190)
+        try:
+            hb = recv(m, "HEARTBEAT", 5, lambda h: h.get_srcComponent() == COMPID)
+            assert hb is not None and hb.get_srcSystem() == 5 and hb.autopilot == 8
+        finally:
+            m.close()
