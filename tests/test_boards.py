@@ -40,6 +40,7 @@ def test_profile_builds_a_vehicle_and_reports_its_heap(vehicle, board):
     (("status", "calibration"), "service calibration needs commands: add it to SERVICES, before calibration"),
     (("status", "calibration", "commands"), "service calibration needs commands: list it before calibration in SERVICES"),
     (("status", "commands", "streams", "inputs"), "service streams comes after inputs: list inputs before it in SERVICES"),
+    (("status", "params", "peripheral"), "service peripheral replaces status: list one of them in SERVICES"),
 ])
 def test_services_out_of_order_are_named_in_one_line(tmp_path, services, line):
     """A board whose SERVICES miss or misorder what a service declares (NEEDS, AFTER) does

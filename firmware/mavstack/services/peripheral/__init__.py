@@ -11,6 +11,8 @@ from ...link import RANK_VITAL, RANK_AUTO
 from .follow import Follow
 from .output import DistanceSensor, NamedValue
 
+INSTEAD_OF = ("status",)  # the HEARTBEAT of a component, not of a vehicle
+
 _MSG_HEARTBEAT = const(0)
 _MAV_AUTOPILOT_INVALID = const(8)
 _MAV_STATE_BOOT = const(1)
