@@ -199,6 +199,9 @@ def test_camera_discovery_and_capture(vehicle):
     assert _command(m, 512, 260.0, target=(7, CAMERA)).result == 0
     settings = recv(m, "CAMERA_SETTINGS", 2)
     assert settings is not None and settings.mode_id == 0
+    assert _command(m, 512, 261.0, target=(7, CAMERA)).result == 0  # QGroundControl asks next
+    storage = recv(m, "STORAGE_INFORMATION", 2)
+    assert storage is not None and storage.status == 3  # STORAGE_STATUS_NOT_SUPPORTED
     # The older commands.
     assert _command(m, 521, 1.0, target=(7, CAMERA)).result == 0
     assert recv(m, "CAMERA_INFORMATION", 2) is not None

@@ -8,7 +8,7 @@ DISTANCE_SENSOR every 20 ms and NAMED_VALUE_FLOAT/INT every 100 ms; the interval
 capture's CAMERA_IMAGE_CAPTURED every 50 ms; and a burst every 25 rounds: HEARTBEATs of
 the autopilot and a ground station, PARAM_REQUEST_READ by index and by name, a
 PARAM_REQUEST_LIST to component 0, REQUEST_MESSAGE (DISTANCE_SENSOR, CAMERA_INFORMATION,
-CAMERA_SETTINGS, CAMERA_CAPTURE_STATUS), a single IMAGE_START_CAPTURE, the application's
+CAMERA_SETTINGS, CAMERA_CAPTURE_STATUS, STORAGE_INFORMATION), a single IMAGE_START_CAPTURE, the application's
 own command, an unknown one for component 0 (no ACK) and one for the autopilot (not ours).
 Rounds run twice: unlocked, counted with micropython.mem_total(), then under heap_lock().
 Prints `OK silent=N sysid=7 ... requested=0` (figures of the locked run), or FAIL.
@@ -87,6 +87,7 @@ def build():
         g.command(512, 259.0, target_system=to, target_component=COMPID),  # CAMERA_INFORMATION
         g.command(512, 260.0, target_system=to, target_component=COMPID),  # CAMERA_SETTINGS
         g.command(527, 1.0, target_system=to, target_component=COMPID),  # CAMERA_CAPTURE_STATUS
+        g.command(512, 261.0, target_system=to, target_component=COMPID),  # STORAGE_INFORMATION
         g.command(2000, 0.0, 0.0, 1.0, target_system=to, target_component=COMPID),  # one image (refused while capturing)
         g.command(_CMD_USER_1, 1.0, target_system=to, target_component=COMPID),  # the application's own
         g.command(31000, target_system=to, target_component=0),  # unknown, for every component: no ACK
@@ -138,14 +139,14 @@ def main():
     finally:
         micropython.heap_unlock()
     d = {}
-    for msgid in (0, 22, 77, 132, 251, 252, 259, 260, 262, 263):
+    for msgid in (0, 22, 77, 132, 251, 252, 259, 260, 261, 262, 263):
         d[msgid] = b.seen[msgid] - seen0[msgid]
     ok = (silent == 0 and sysid == 7 and requested == 0 and b.rx.sysid == 7 and b.rx.compid == COMPID
-          and d[132] > 0 and d[263] > 0 and d[259] > 0 and d[22] > 0 and b.results[3] == unsupported0)
+          and d[132] > 0 and d[263] > 0 and d[259] > 0 and d[261] > 0 and d[22] > 0 and b.results[3] == unsupported0)
     print("%s silent=%d sysid=%d rounds=%d heartbeats=%d param_values=%d acks=%d distance=%d named=%d "
-          "camera_info=%d settings=%d capture_status=%d captured=%d requested=%d"
+          "camera_info=%d settings=%d storage=%d capture_status=%d captured=%d requested=%d"
           % ("OK" if ok else "FAIL", silent, sysid, rounds, d[0], d[22], b.acks - acks0, d[132], d[251] + d[252],
-             d[259], d[260], d[262], d[263], requested))
+             d[259], d[260], d[261], d[262], d[263], requested))
 
 
 main()

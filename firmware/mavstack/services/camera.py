@@ -1,7 +1,8 @@
 """The camera service: a camera component as ground stations and autopilots find and
 drive it. It answers the discovery QGroundControl and ArduPilot perform
 (REQUEST_MESSAGE, or the older REQUEST_CAMERA_INFORMATION / _SETTINGS, for
-CAMERA_INFORMATION then CAMERA_SETTINGS), CAMERA_CAPTURE_STATUS, and takes images on
+CAMERA_INFORMATION then CAMERA_SETTINGS), CAMERA_CAPTURE_STATUS and
+STORAGE_INFORMATION (one storage, not supported), and takes images on
 IMAGE_START_CAPTURE (one, a number, or until IMAGE_STOP_CAPTURE, at an interval): each
 is the application's capture(index) -> True when taken, announced with
 CAMERA_IMAGE_CAPTURED on every link after the command's ACK. Settings: CAMERA_VENDOR,
@@ -17,10 +18,12 @@ NEEDS = ("commands",)
 
 _MSG_CAMERA_INFORMATION = const(259)
 _MSG_CAMERA_SETTINGS = const(260)
+_MSG_STORAGE_INFORMATION = const(261)
 _MSG_CAMERA_CAPTURE_STATUS = const(262)
 _MSG_CAMERA_IMAGE_CAPTURED = const(263)
 _CMD_REQUEST_CAMERA_INFORMATION = const(521)
 _CMD_REQUEST_CAMERA_SETTINGS = const(522)
+_CMD_REQUEST_STORAGE_INFORMATION = const(525)
 _CMD_REQUEST_CAMERA_CAPTURE_STATUS = const(527)
 _CMD_IMAGE_START_CAPTURE = const(2000)
 _CMD_IMAGE_STOP_CAPTURE = const(2001)
@@ -31,6 +34,8 @@ _CAP_CAPTURE_IMAGE = const(2)  # CAMERA_CAP_FLAGS
 _INFO_LEN = const(237)
 _SETTINGS_LEN = const(14)
 _STATUS_LEN = const(23)
+_STORAGE_LEN = const(61)
+_STORAGE_NOT_SUPPORTED = const(3)  # STORAGE_STATUS
 _CAPTURED_LEN = const(255)
 
 
@@ -62,6 +67,7 @@ class Camera:
         for msgid, send in ((_MSG_CAMERA_INFORMATION, self.send_information),
                             (_MSG_CAMERA_SETTINGS, self.send_settings),
                             (_MSG_CAMERA_CAPTURE_STATUS, self.send_capture_status),
+                            (_MSG_STORAGE_INFORMATION, self.send_storage),
                             (_MSG_CAMERA_IMAGE_CAPTURED, self.send_captured)):
             if ep.has(msgid):
                 ep.producers[msgid] = send
@@ -71,6 +77,7 @@ class Camera:
         commands[_CMD_REQUEST_CAMERA_INFORMATION] = self._request_information
         commands[_CMD_REQUEST_CAMERA_SETTINGS] = self._request_settings
         commands[_CMD_REQUEST_CAMERA_CAPTURE_STATUS] = self._request_status
+        commands[_CMD_REQUEST_STORAGE_INFORMATION] = self._request_storage
 
     # --- commands -------------------------------------------------------------------------
     def _request_information(self, cmd):
@@ -81,6 +88,9 @@ class Camera:
 
     def _request_status(self, cmd):
         return self._reply(cmd, _MSG_CAMERA_CAPTURE_STATUS)
+
+    def _request_storage(self, cmd):
+        return self._reply(cmd, _MSG_STORAGE_INFORMATION)
 
     def _reply(self, cmd, msgid):
         # param1: 0 no action, 1 send it
@@ -165,6 +175,16 @@ class Camera:
         buf[off + 16] = 3 if self.interval_ms else 0  # image_status: interval capturing, or idle
         pack_into("<i", buf, off + 18, self.images)
         return link.send(_MSG_CAMERA_CAPTURE_STATUS)
+
+    def send_storage(self, link):
+        # One storage, "not supported": where the images go is the application's business.
+        off = link.tx.clear(_STORAGE_LEN)
+        buf = link.txbuf
+        self.ep.clock.stamp_ms(buf, off)
+        buf[off + 24] = 1  # storage_id
+        buf[off + 25] = 1  # storage_count
+        buf[off + 26] = _STORAGE_NOT_SUPPORTED
+        return link.send(_MSG_STORAGE_INFORMATION)
 
     def send_captured(self, link):
         p = self._captured
