@@ -80,8 +80,8 @@ def build():
     frames = (
         ap.frame(0, 0, 2, 3, 0, 4, 3),  # the autopilot's HEARTBEAT (a quadrotor, ArduPilot)
         g.heartbeat(),
-        g.frame(20, 1, to, COMPID, b"", 0),  # PARAM_REQUEST_READ by index
-        g.frame(20, -1, to, COMPID, b"RNGFND_MAX_CM", 0),  # ... by name
+        g.frame(20, 1, to, COMPID, b""),  # PARAM_REQUEST_READ by index
+        g.frame(20, -1, to, COMPID, b"RNGFND_MAX_CM"),  # ... by name
         g.frame(21, to, 0),  # PARAM_REQUEST_LIST to component 0
         g.command(512, 132.0, target_system=to, target_component=COMPID),  # REQUEST_MESSAGE
         g.command(512, 259.0, target_system=to, target_component=COMPID),  # CAMERA_INFORMATION
