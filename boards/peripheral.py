@@ -9,7 +9,7 @@ reading that sweeps between 1 and 4 m, a NAMED_VALUE_INT count of readings once 
 MAV_CMD_USER_1 (param1 0/1) pauses and resumes it. Its ticks allocate nothing.
 """
 from mavstack.compat import ticks_add, ticks_diff
-from mavstack.services.params import INT32
+from mavstack.services.params import REAL32
 
 DIALECT = "common"
 SYSID = "follow"  # the autopilot's, from its HEARTBEAT; nothing is sent before
@@ -19,13 +19,15 @@ COMPID = 158  # MAV_COMP_ID_PERIPHERAL
 MAV_TYPE = 0  # MAV_TYPE_GENERIC (common has no rangefinder type); MAV_AUTOPILOT_INVALID is implied
 SERVICES = ("peripheral", "params", "commands")
 ACK_UNSUPPORTED_BROADCAST = False  # a command for every component that it has not: no ACK
-PARAM_ENCODING = "bytewise"
+PARAM_ENCODING = "bytewise"  # (REAL32 parameters are the same under either encoding)
+# REAL32, as ArduPilot's parameters all are on the wire: a peripheral behind an autopilot
+# cannot tell which integer encoding the station asking assumes (docs/services/peripheral.md).
 PARAMS = (
-    ("RNGFND_RATE_HZ", INT32, 10, 1, 50),
-    ("RNGFND_MIN_CM", INT32, 20, 0, 65535),
-    ("RNGFND_MAX_CM", INT32, 700, 1, 65535),
-    ("RNGFND_ORIENT", INT32, 25, 0, 100),  # MAV_SENSOR_ORIENTATION: 25 pointing down
-    ("RNGFND_TYPE", INT32, 0, 0, 4),  # MAV_DISTANCE_SENSOR: 0 laser
+    ("RNGFND_RATE_HZ", REAL32, 10.0, 1.0, 50.0),
+    ("RNGFND_MIN_CM", REAL32, 20.0, 0.0, 65535.0),
+    ("RNGFND_MAX_CM", REAL32, 700.0, 1.0, 65535.0),
+    ("RNGFND_ORIENT", REAL32, 25.0, 0.0, 100.0),  # MAV_SENSOR_ORIENTATION: 25 pointing down
+    ("RNGFND_TYPE", REAL32, 0.0, 0.0, 4.0),  # MAV_DISTANCE_SENSOR: 0 laser
 )
 _CMD_USER_1 = 31010
 

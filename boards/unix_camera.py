@@ -5,7 +5,7 @@ counting) images on IMAGE_START_CAPTURE (mavstack/services/camera.py).
 
     .venv/bin/micropython firmware/main.py --board unix_camera --link serial:/dev/pts/N:115200
 """
-from mavstack.services.params import INT32
+from mavstack.services.params import REAL32
 
 NAME = "unix_camera"
 DIALECT = "common"
@@ -21,9 +21,9 @@ LINKS = ("udpout:127.0.0.1:14550",)
 UDP_BYTES_PER_S = 200000
 PARAM_ENCODING = "bytewise"
 PARAM_AUTOSAVE_MS = 2000
-PARAMS = (
-    ("CAM_QUALITY", INT32, 90, 1, 100),  # JPEG quality, stored and served
-    ("CAM_FAIL_EVERY", INT32, 0, 0, 1000),  # every Nth capture fails (0: none), for testing
+PARAMS = (  # REAL32: the same under either integer encoding (docs/services/peripheral.md)
+    ("CAM_QUALITY", REAL32, 90.0, 1.0, 100.0),  # JPEG quality, stored and served
+    ("CAM_FAIL_EVERY", REAL32, 0.0, 0.0, 1000.0),  # every Nth capture fails (0: none), for testing
 )
 CAMERA_VENDOR = "mavstack"
 CAMERA_MODEL = "unix camera"
@@ -43,11 +43,16 @@ class Shutter:
 
     def __init__(self, ep):
         self.params = ep.services["params"]
+        self.every = int(self.params.get("CAM_FAIL_EVERY"))  # read once, and on a change
+        self.params.on_change = self._changed
         ep.services["camera"].capture = self.capture
 
+    def _changed(self, name, value):
+        if name == "CAM_FAIL_EVERY":
+            self.every = int(value)
+
     def capture(self, index):
-        every = int(self.params.get("CAM_FAIL_EVERY"))
-        return not (every and (index + 1) % every == 0)
+        return not (self.every and (index + 1) % self.every == 0)
 
     def tick(self, now):
         pass

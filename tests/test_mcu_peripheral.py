@@ -8,7 +8,6 @@ unsupported. The UART is a pty QEMU names, opened the way a host program would
 (EmulatedBoard.start_peripheral). Prints the heap the peripheral holds."""
 import os
 import re
-import struct
 import time
 
 from conftest import recv
@@ -17,14 +16,6 @@ from test_mcu import _gate
 
 BOARD = "qemu_m0_rangefinder"
 COMPID = 158
-
-
-def _i32(v):
-    return struct.unpack("<i", struct.pack("<f", v))[0]
-
-
-def _f(i):
-    return struct.unpack("<f", struct.pack("<i", i))[0]
 
 
 def _autopilot_heartbeat(m):
@@ -79,12 +70,12 @@ def test_rangefinder_peripheral_on_the_m0():
                     assert p.get_srcComponent() == COMPID and p.param_count == 5
                     got[p.param_id] = p
             assert sorted(got) == ["RNGFND_MAX_CM", "RNGFND_MIN_CM", "RNGFND_ORIENT", "RNGFND_RATE_HZ", "RNGFND_TYPE"]
-            m.mav.param_set_send(7, COMPID, b"RNGFND_MAX_CM", _f(550), 6)
+            m.mav.param_set_send(7, COMPID, b"RNGFND_MAX_CM", 550.0, 9)
             p = recv(m, "PARAM_VALUE", 3, lambda p: p.param_id == "RNGFND_MAX_CM")
-            assert p is not None and _i32(p.param_value) == 550
+            assert p is not None and p.param_value == 550.0
             m.mav.param_request_read_send(7, COMPID, b"RNGFND_MAX_CM", -1)
             p = recv(m, "PARAM_VALUE", 3, lambda p: p.param_id == "RNGFND_MAX_CM")
-            assert p is not None and _i32(p.param_value) == 550
+            assert p is not None and p.param_value == 550.0
             assert recv(m, "DISTANCE_SENSOR", 3, lambda d: d.max_distance == 550) is not None
             # Commands addressed to it.
             m.mav.command_long_send(7, COMPID, 512, 0, 132, 0, 0, 0, 0, 0, 0)

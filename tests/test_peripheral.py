@@ -6,7 +6,6 @@ for component 0 and set and read by component, commands (REQUEST_MESSAGE, the
 application's own, none answered for other components), DISTANCE_SENSOR and
 NAMED_VALUE_INT out; the camera's discovery and image capture."""
 import os
-import struct
 import time
 
 import pytest
@@ -20,15 +19,6 @@ AUTOPILOT = (7, 1)  # the autopilot the peripheral follows
 GCS = (255, 190)
 COMPID = 158
 MAV_AUTOPILOT_INVALID = 8
-
-
-def _i32(v):
-    """An INT32 parameter's value as the bytewise encoding carries it in param_value."""
-    return struct.unpack("<i", struct.pack("<f", v))[0]
-
-
-def _f(i):
-    return struct.unpack("<f", struct.pack("<i", i))[0]
 
 
 def _as(m, who):
@@ -124,20 +114,20 @@ def test_parameters_by_component(vehicle):
     _followed(m)
     params = _param_list(m)  # to component 0: every component answers with its own id
     assert sorted(params) == ["RNGFND_MAX_CM", "RNGFND_MIN_CM", "RNGFND_ORIENT", "RNGFND_RATE_HZ", "RNGFND_TYPE"]
-    assert _i32(params["RNGFND_RATE_HZ"].param_value) == 10  # INT32, bytewise (PARAM_ENCODING)
+    assert params["RNGFND_RATE_HZ"].param_value == 10.0 and params["RNGFND_RATE_HZ"].param_type == 9  # REAL32
     assert len(_param_list(m, (7, COMPID))) == 5
     # To another component (the autopilot's): not ours.
     m.mav.param_request_list_send(7, 1)
     assert recv(m, "PARAM_VALUE", 1.5) is None
-    m.mav.param_set_send(7, 1, b"RNGFND_MAX_CM", _f(500), 6)
+    m.mav.param_set_send(7, 1, b"RNGFND_MAX_CM", 500.0, 9)
     assert recv(m, "PARAM_VALUE", 1.5) is None
     # Set and read by component; the application takes the new range.
-    m.mav.param_set_send(7, COMPID, b"RNGFND_MAX_CM", _f(500), 6)  # MAV_PARAM_TYPE_INT32
+    m.mav.param_set_send(7, COMPID, b"RNGFND_MAX_CM", 500.0, 9)  # MAV_PARAM_TYPE_REAL32
     p = recv(m, "PARAM_VALUE", 3, lambda p: p.param_id == "RNGFND_MAX_CM")
-    assert p is not None and _i32(p.param_value) == 500 and p.get_srcComponent() == COMPID
+    assert p is not None and p.param_value == 500.0 and p.get_srcComponent() == COMPID
     m.mav.param_request_read_send(7, COMPID, b"RNGFND_MAX_CM", -1)
     p = recv(m, "PARAM_VALUE", 3, lambda p: p.param_id == "RNGFND_MAX_CM")
-    assert p is not None and _i32(p.param_value) == 500
+    assert p is not None and p.param_value == 500.0
     m.mav.param_request_read_send(7, COMPID, b"", 1)  # by index
     p = recv(m, "PARAM_VALUE", 3)
     assert p is not None and p.param_index == 1 and p.param_id == "RNGFND_MIN_CM"
