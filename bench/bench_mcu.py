@@ -7,7 +7,11 @@
                         test still passes, found by bisection over firmware builds
   flash_kb_frozen_m3/_m0, flash_kb_plain_m3/_m0   firmware image with the stack frozen in,
                         and the same firmware with nothing frozen
+  heap_used_kb_m0_peripheral, min_heap_kb_m0_peripheral, flash_kb_frozen_m0_peripheral
+                        the same for the Cortex-M0 as a distance-sensor peripheral
+                        (qemu_m0_rangefinder; held: its `ready` line, once up)
 """
+import re
 import os
 import subprocess
 import sys
@@ -25,12 +29,25 @@ TARGET_KB = 48
 
 
 def _passes(board, heap_kb):
-    """The whole-vehicle test at this heap size -> passed."""
-    env = dict(os.environ, MCU_VEHICLE_HEAP_KB=str(heap_kb))
-    r = subprocess.run([PY, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider",
-                        os.path.join(ROOT, "tests", "test_mcu_vehicle.py"),
-                        "-k", "whole and %s" % board], cwd=ROOT, env=env, capture_output=True, text=True)
+    """The whole-vehicle test (the peripheral's, for qemu_m0_rangefinder) at this heap size -> passed."""
+    if board == "qemu_m0_rangefinder":
+        env = dict(os.environ, MCU_PERIPHERAL_HEAP_KB=str(heap_kb))
+        test = [os.path.join(ROOT, "tests", "test_mcu_peripheral.py")]
+    else:
+        env = dict(os.environ, MCU_VEHICLE_HEAP_KB=str(heap_kb))
+        test = [os.path.join(ROOT, "tests", "test_mcu_vehicle.py"), "-k", "whole and %s" % board]
+    r = subprocess.run([PY, "-m", "pytest", "-q", "-x", "-p", "no:cacheprovider"] + test,
+                       cwd=ROOT, env=env, capture_output=True, text=True)
     return r.returncode == 0
+
+
+def _peripheral_heap_kb():
+    """The peripheral's held heap, as its `ready` line says once it is up (KB)."""
+    from mcu_rig import EmulatedBoard
+
+    with EmulatedBoard("qemu_m0_rangefinder") as b:
+        _pty, line = b.start_peripheral()
+    return int(re.search(r"ready, (\d+) KB", line).group(1))
 
 
 def _heap_used_kb(board):
@@ -76,6 +93,9 @@ def run():
         used, _total = _heap_used_kb(board)
         out["heap_used_kb_" + tag] = round(used, 1)
         out["min_heap_kb_" + tag] = _min_heap_kb(board)
+    out["flash_kb_frozen_m0_peripheral"] = round(firmware.flash_kb(firmware.build("qemu_m0_rangefinder")), 1)
+    out["heap_used_kb_m0_peripheral"] = float(_peripheral_heap_kb())
+    out["min_heap_kb_m0_peripheral"] = _min_heap_kb("qemu_m0_rangefinder")
     return out
 
 

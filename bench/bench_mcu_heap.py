@@ -5,7 +5,8 @@ reading gc.mem_alloc() after each; a part is what its step left held.
     heap_kb_<part>_m3/_m0   board (the profile's import: module dicts; its PARAMS block stays in flash),
                             dialect, endpoint, storage, links, guard (the crash-loop
                             guard, on a board with a watchdog), each service of SERVICES
-                            (its modules' globals and its objects), application
+                            (its modules' globals and its objects), application;
+    heap_kb_<part>_m0_peripheral   the same for qemu_m0_rangefinder
     .venv/bin/python bench/bench_mcu_heap.py
 """
 import os
@@ -33,7 +34,7 @@ _p("board")
 dialect = __import__("mavstack.dialects." + board.DIALECT, None, None, ("CRC_LEN",))
 _p("dialect")
 from mavstack.endpoint import Endpoint
-ep = Endpoint(dialect, board.SYSID, board.COMPID)
+ep = Endpoint(dialect, 0 if board.SYSID == "follow" else board.SYSID, board.COMPID)
 ep.board = board
 ep.options = {}
 _p("endpoint")
@@ -75,7 +76,7 @@ def run():
     if firmware.tools_missing():
         raise RuntimeError("MCU tools missing (make mcu-deps): %s" % firmware.tools_missing())
     out = {}
-    for board, tag in (("qemu_m3", "m3"), ("qemu_m0", "m0")):
+    for board, tag in (("qemu_m3", "m3"), ("qemu_m0", "m0"), ("qemu_m0_rangefinder", "m0_peripheral")):
         for part, held in parts(board).items():
             out["heap_kb_%s_%s" % (part, tag)] = round(held / 1024, 2)
     return out

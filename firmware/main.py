@@ -68,7 +68,8 @@ def build(board, opts, dog=None):
     name = opts.get("options", {}).get("dialect") or board.DIALECT
     dialect = __import__("mavstack.dialects." + name, None, None, ("CRC_LEN",))
     sysid = opts.get("sysid") or getattr(board, "SYSID", 1)
-    ep = Endpoint(dialect, sysid, getattr(board, "COMPID", 1))
+    # "follow" (a peripheral): 0 until the autopilot's HEARTBEAT tells it (services/peripheral/)
+    ep = Endpoint(dialect, 0 if sysid == "follow" else sysid, getattr(board, "COMPID", 1))
     ep.board = board
     ep.options = opts.get("options", {})
     offset = ep.setting("UPTIME_OFFSET_MS", 0)  # tests: start late, to see uptimes past 2^30
@@ -104,7 +105,10 @@ def build(board, opts, dog=None):
     if dog is not None:
         dog.feed()
     # Each after the services it needs (in safe mode, those the guard leaves).
-    why = compose(ep, board.SERVICES if guard is None else guard.services)
+    why = None
+    if ep.sysid == 0 and "peripheral" not in board.SERVICES:
+        why = 'SYSID "follow" needs the peripheral service: add it to SERVICES'
+    why = why or compose(ep, board.SERVICES if guard is None else guard.services)
     if why:  # the profile's SERVICES are wrong: say so in one line, and stop
         print("mavstack: board %s: %s" % (board.NAME, why))
         sys.exit(1)

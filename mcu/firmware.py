@@ -33,6 +33,8 @@ BOARDS = {
     "qemu_m0": ("MICROBIT", ["-machine", "microbit", "-global", "nrf51-soc.flash-size=1048576",
                              "-global", "nrf51-soc.sram-size=262144"], False),
 }
+# The same machine and build, another profile: the Cortex-M0 as a distance-sensor peripheral.
+BOARDS["qemu_m0_rangefinder"] = ("MICROBIT",) + BOARDS["qemu_m0"][1:]
 
 
 def _sh(cmd, **kw):

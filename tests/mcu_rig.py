@@ -5,6 +5,7 @@ ptys, the REPL driven by mpremote's raw-REPL transport, MAVLink through pymavlin
         b.exec("print(1)")                 -> output (raises BoardError on an exception)
         b.run_script("tests/mpy/x.py", args, files={"name": bytes})   a script, as on unix
         gcs = b.start_vehicle()            the vehicle (firmware/main.py); a pymavlink link
+        pty, line = b.start_peripheral()   a peripheral's vehicle; its pty free for a host program
         b.console()                        what the REPL UART printed since (qemu_m3)
 
 qemu_m3 has the REPL on UART 0 and MAVLink on UART 1. qemu_m0 has one UART: once the
@@ -156,6 +157,35 @@ class EmulatedBoard:
         if gcs.wait_heartbeat(timeout=timeout) is None:
             raise BoardError("no HEARTBEAT from the %s vehicle; console: %r" % (self.board, self.console()))
         return gcs
+
+    def start_peripheral(self, options=None, timeout=20):
+        """Boot firmware/main.py on a board whose profile follows its autopilot's system id
+        (SYSID "follow": it sends nothing before it hears one), wait for its `ready` line,
+        and let go of the UART -> (the MAVLink pty's path, that line). A host program then
+        opens the pty: pymavlink's mavlink_connection(path, baud=115200), or the unix
+        vehicle's `--link serial:PATH:115200`. On a one-UART board what it prints later
+        comes in the same stream, between frames."""
+        argv = []
+        for k, v in (options or {}).items():
+            argv += ["--set", "%s=%s" % (k, v)]
+        self.repl.exec_raw_no_follow("import main\nmain.main(%r)" % argv)
+        s = self.repl.serial  # what it prints: the REPL's UART (on qemu_m0 the only one)
+        got = b""
+        end = time.time() + timeout
+        while time.time() < end:
+            if not s.in_waiting:  # (a read would wait for ever: a board that never gets there)
+                time.sleep(0.05)
+                continue
+            got += s.read(s.in_waiting)
+            m = re.search(rb"mavstack: \w+ ready[^\n]*\n", got)
+            if m:
+                break
+        else:
+            raise BoardError("the %s vehicle did not say it was ready: %r" % (self.board, got[-500:]))
+        if self.uarts == 1:  # the one UART is MAVLink's from now on
+            self.repl.close()
+            self.repl = None
+        return self.ptys[-1], m.group(0).decode().strip()
 
     def reopen_repl(self):
         """The REPL again on qemu_m0's one UART, once the vehicle has returned to it."""

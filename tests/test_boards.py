@@ -13,15 +13,21 @@ from conftest import MICROPYTHON, ROOT
 sys.path.insert(0, os.path.join(ROOT, "boards"))
 
 
-@pytest.mark.parametrize("board", ["unix", "unix_signed", "pico", "esp32", "pyboard", "qemu_m3", "qemu_m0"])
+@pytest.mark.parametrize("board", ["unix", "unix_signed", "pico", "esp32", "pyboard", "qemu_m3", "qemu_m0",
+                                   "unix_peripheral", "unix_camera", "qemu_m0_rangefinder"])
 def test_profile_builds_a_vehicle_and_reports_its_heap(vehicle, board):
     # The emulated boards lock the heap once up; the unix port's UDP links allocate for
     # each new peer, so here they run unlocked (tests/test_mcu_vehicle.py runs them locked).
-    v = vehicle(board=board, args=["--set", "heap_lock=0"] if board.startswith("qemu") else [])
-    m = v.gcs()
     profile = __import__(board)
+    args = ["--set", "heap_lock=0"] if board.startswith("qemu") else []
+    if getattr(profile, "SYSID", 1) == "follow":
+        args += ["--sysid", "3"]  # a peripheral with its system id given: it speaks at once
+    v = vehicle(board=board, args=args)
+    m = v.gcs()
     hb = m.recv_match(type="HEARTBEAT", blocking=True, timeout=5)
     assert hb is not None and hb.type == profile.MAV_TYPE
+    assert hb.get_srcComponent() == getattr(profile, "COMPID", 1)
+    assert (hb.autopilot == 8) == ("peripheral" in profile.SERVICES)  # MAV_AUTOPILOT_INVALID
     v.stop()
     ready = re.search(r"mavstack: (\w+) ready, (\d+) KB of heap in use \(budget (\d+) KB\)", v.output())
     assert ready, v.output()
@@ -34,6 +40,7 @@ def test_profile_builds_a_vehicle_and_reports_its_heap(vehicle, board):
     (("status", "calibration"), "service calibration needs commands: add it to SERVICES, before calibration"),
     (("status", "calibration", "commands"), "service calibration needs commands: list it before calibration in SERVICES"),
     (("status", "commands", "streams", "inputs"), "service streams comes after inputs: list inputs before it in SERVICES"),
+    (("status", "params", "peripheral"), "service peripheral replaces status: list one of them in SERVICES"),
 ])
 def test_services_out_of_order_are_named_in_one_line(tmp_path, services, line):
     """A board whose SERVICES miss or misorder what a service declares (NEEDS, AFTER) does
@@ -47,6 +54,19 @@ def test_services_out_of_order_are_named_in_one_line(tmp_path, services, line):
     assert r.returncode == 1, (r.stdout, r.stderr)
     assert r.stdout.strip().splitlines()[-1] == "mavstack: board bad_board: " + line, r.stdout
     assert "Traceback" not in r.stdout + r.stderr
+
+
+def test_follow_without_the_peripheral_service_is_refused(tmp_path):
+    """SYSID "follow" is the peripheral service's: a board without it would never speak."""
+    (tmp_path / "bad_board.py").write_text(
+        "from unix import *  # noqa\nNAME = 'bad_board'\nSYSID = 'follow'\nSERVICES = ('status', 'params')\n")
+    env = dict(os.environ, MICROPYPATH="%s:%s:.frozen" % (tmp_path, os.path.join(ROOT, "boards")))
+    r = subprocess.run([MICROPYTHON, os.path.join(ROOT, "firmware", "main.py"), "--board", "bad_board",
+                        "--link", "udpout:127.0.0.1:9", "--storage", str(tmp_path / "st")],
+                       capture_output=True, text=True, timeout=60, env=env)
+    assert r.returncode == 1, (r.stdout, r.stderr)
+    assert r.stdout.strip().splitlines()[-1] == ('mavstack: board bad_board: SYSID "follow" needs the '
+                                                 'peripheral service: add it to SERVICES'), r.stdout
 
 
 def test_every_service_declares_the_services_it_looks_up():

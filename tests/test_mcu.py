@@ -137,6 +137,7 @@ STEADY = (
     ("seed_steady.py", ["common", 3]),  # geography, debug, servos, auth, calibration, seed commands
     ("faults_steady.py", [100]),  # a raising handler and tick: contained, params/missions/streams go on
     ("route_steady.py", [3000]),  # frames forwarded between three links (router.py)
+    ("peripheral_steady.py", [2000]),  # a peripheral: sysid followed, its output, camera, commands
     ("fuzz_found.py", ["-"]),  # what tests/test_mcu_fuzz.py found: ints past 2^30, huge floats
 )
 

@@ -139,6 +139,8 @@ class Link:
         """Frame and transmit the payload packed at begin(), paid from the budget at
         self.rank; False if not sent."""
         ep = self.endpoint
+        if ep.sysid == 0:  # a peripheral still learning its system id (SYSID "follow")
+            return False
         n = self.tx.finish(msgid, ep.sysid, ep.compid if compid < 0 else compid)
         if n == 0:
             return False

@@ -4,7 +4,8 @@ A service module has create(ep) (which calls ep.add) and says which others it wo
     NEEDS = ("commands",)   it does nothing without these: listed, and before it
     AFTER = ("inputs",)     when listed, before it (it looks them up at start-up)
     USES = ("status",)      looked up while running when there (ep.services.get)
-compose() checks the first two and refuses a board that breaks them with one line.
+    INSTEAD_OF = ("status",)  it does that one's job: never both
+compose() checks NEEDS, AFTER and INSTEAD_OF, and refuses a board that breaks them with one line.
 """
 import gc
 
@@ -30,6 +31,9 @@ def misplaced(module, names, i):
             return "service %s needs %s: add it to SERVICES, before %s" % (name, need, name)
         if names.index(need) > i:
             return "service %s needs %s: list it before %s in SERVICES" % (name, need, name)
+    for other in getattr(module, "INSTEAD_OF", ()):
+        if other in names:
+            return "service %s replaces %s: list one of them in SERVICES" % (name, other)
     for peer in getattr(module, "AFTER", ()):
         if peer in names and names.index(peer) > i:
             return "service %s comes after %s: list %s before it in SERVICES" % (name, peer, peer)

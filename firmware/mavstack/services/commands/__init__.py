@@ -68,6 +68,7 @@ class Commands:
         self._new = -1  # the entry the last ack() held back, -1: sent or dropped
         self.acks_held = 0  # ACKs the budget held back (then sent by a tick)
         self.acks_dropped = 0  # held-back ACKs dropped: no room left
+        self.ack_broadcast = True  # ACK_UNSUPPORTED_BROADCAST: UNSUPPORTED for component 0 too
 
     def attach(self, ep):
         self.ep = ep
@@ -143,6 +144,8 @@ class Commands:
     def _execute(self, cmd):
         handler = self.handlers.get(cmd.command)
         if handler is None:
+            if cmd.payload[31] == 0 and not self.ack_broadcast:
+                return  # a peripheral keeps out of what other components answer
             result = MAV_RESULT_UNSUPPORTED
         else:
             result = self.ep.faults.run(handler, cmd)
@@ -348,4 +351,6 @@ def command_id(name):
 
 
 def create(ep):
-    return ep.add(Commands())
+    commands = Commands()
+    commands.ack_broadcast = ep.setting("ACK_UNSUPPORTED_BROADCAST", True)
+    return ep.add(commands)

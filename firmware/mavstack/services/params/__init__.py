@@ -351,7 +351,7 @@ class Params(ParamStore, LinkEncodings, ParamTable):
         if self._flags[i] & REBOOT:
             self.ep.statustext(_SEVERITY_NOTICE, self._named_text(i, _AFTER_REBOOT))
         if self.on_change is not None:
-            self.on_change(self.name(i), self.value(i))
+            self._tell(i)  # (store.py)
 
     def _named_text(self, i, tail):
         """Parameter i's name and tail, as a STATUSTEXT made in a buffer (NUL-padded)."""

@@ -8,7 +8,7 @@ in RAM storage (IN_PLACE), is packed and read where it lies; under a Guard inste
 
 Reference: docs/services/params.md
 """
-from ...compat import const, ticks_diff
+from ...compat import const, ticks_diff, heap_open, heap_close
 
 FILE = "params"
 
@@ -163,6 +163,15 @@ class ParamStore:
         """A value changed: dirty, saved PARAM_AUTOSAVE_MS from now if that is set."""
         self.dirty = True
         self._changed_at = self.ep.now
+
+    def _tell(self, i):
+        """on_change(name, value): made for the application, a rare event, so on a board
+        that locks its heap the lock is opened for it."""
+        depth = heap_open()
+        try:
+            self.on_change(self.name(i), self.value(i))
+        finally:
+            heap_close(depth)
 
     def _autosave(self, now):
         """Save when PARAM_AUTOSAVE_MS have passed since the last change -> ms to the
