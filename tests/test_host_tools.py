@@ -105,7 +105,7 @@ def stack_modules(with_meta=False):
             if not name.endswith(".py"):
                 continue
             rel = os.path.relpath(os.path.join(dirpath, name), os.path.dirname(STACK))
-            if "/dialects/" in rel and name not in ("__init__.py", "common.py") and not (
+            if "/dialects/" in rel and name not in ("__init__.py", "common.py", "table.py") and not (
                     with_meta and name in ("common_meta.py", "layout.py")):
                 continue
             if name.endswith("_meta.py") and not with_meta:

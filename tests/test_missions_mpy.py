@@ -2,7 +2,7 @@
 requests counted with mem_total, then under micropython.heap_lock(); tests/mpy/
 missions_steady.py, missions_runner_steady.py, which the emulated 32-bit boards run
 too), the runner's DO_JUMP order, and a 500-item mission on a vehicle whose heap is
-80 KB, running from .mpy files (RAM must not grow with the mission)."""
+100 KB, running from .mpy files (RAM must not grow with the mission)."""
 import os
 import platform
 import re
@@ -88,14 +88,17 @@ def test_runner_do_jump_on_micropython(tmp_path):
     assert r.stdout.split("]")[1].split() == ["5", "16"]  # COMPLETE, last item a waypoint
 
 
-# --- a 500-item mission in 80 KB of heap (64-bit unix port) ----------------------
+# --- a 500-item mission in 100 KB of heap (64-bit unix port) ---------------------
 # What a small board runs: the missions service alone (no runner: nothing flies here),
 # a dialect cut to the mission messages, the stack compiled to .mpy. The dialect and
 # board profile are made here from the committed generator, so nothing goes stale.
 # The heap is the 64-bit port's (every object word twice a 32-bit board's): 74 KB are in
 # use once the vehicle is up, most of it the loaded code (the link's byte budget, whole-
 # frame ingest and the windowed upload took it from 64 KB to 76 KB; fault containment,
-# text read off the wire and the services' composition check to 80 KB). RAM does not
+# text read off the wire and the services' composition check to 80 KB; the loop that
+# works when due, routing, radio flow control and peripheral mode, all code every
+# board's main.py, endpoint and links carry, to 100 KB: on a board that code is frozen
+# in flash, and the emulated boards' whole vehicle went from 74 to 57 KB). RAM does not
 # grow with the mission: 500 items go through in what start-up leaves.
 LEAN_MESSAGES = ("MISSION_REQUEST_PARTIAL_LIST,MISSION_WRITE_PARTIAL_LIST,MISSION_ITEM,MISSION_REQUEST,"
                  "MISSION_SET_CURRENT,MISSION_CURRENT,MISSION_REQUEST_LIST,MISSION_COUNT,MISSION_CLEAR_ALL,"
@@ -149,7 +152,7 @@ def _build_lean(out, flags=()):
     return out / "mpy"
 
 
-def test_500_items_in_80k_from_mpy(tmp_path):
+def test_500_items_in_100k_from_mpy(tmp_path):
     from pymavlink import mavutil
 
     mpy = _build_lean(tmp_path)
@@ -161,7 +164,7 @@ def test_500_items_in_80k_from_mpy(tmp_path):
     # pytest makes its directories (each module's __file__ is interned).
     env = dict(os.environ, MICROPYPATH=os.path.relpath(str(mpy), str(tmp_path)))
     # udpout: the vehicle sends to the ground station (SITL style) and hears its replies.
-    p = subprocess.Popen([MICROPYTHON, "-X", "heapsize=80K", "-m", "main", "--board", "lean",
+    p = subprocess.Popen([MICROPYTHON, "-X", "heapsize=100K", "-m", "main", "--board", "lean",
                           "--link", "udpout:127.0.0.1:%d" % port, "--storage", "st"],
                          cwd=str(tmp_path), env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:

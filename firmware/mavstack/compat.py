@@ -21,8 +21,9 @@ except ImportError:
     MICROPYTHON = False
 
 
+wait_ms = None  # sleep_ms that ends when a byte comes, where the port has one (sleeper.py)
 if time is None:
-    from .qemu import ticks_ms, ticks_us, ticks_diff, ticks_add, sleep_ms
+    from .qemu import ticks_ms, ticks_us, ticks_diff, ticks_add, sleep_ms, wait_ms
 elif hasattr(time, "ticks_ms"):
     ticks_ms = time.ticks_ms
     ticks_us = time.ticks_us

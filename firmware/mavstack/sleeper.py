@@ -5,7 +5,7 @@ emulated boards qemu.wait_ms watches their UARTs; otherwise the loop sleeps at m
 1 ms at a time, so that no link is left unread longer than that.
 Reference: docs/core.md.
 """
-from .compat import MICROPYTHON, const, sleep_ms, time
+from .compat import MICROPYTHON, const, sleep_ms, wait_ms
 
 _HUNG = const(0x18)  # POLLERR | POLLHUP
 
@@ -14,9 +14,7 @@ class Sleeper:
     def __init__(self, links):
         self._poll = None
         self.sleep = self._short
-        if time is None:  # the emulated boards (compat.py)
-            from .qemu import wait_ms
-
+        if wait_ms is not None:  # the emulated boards (compat.py)
             self.sleep = wait_ms
             return
         ways = [getattr(link.transport, "waitable", None) for link in links]

@@ -2,8 +2,10 @@
 heap_lock: a command parameter of 2^30 or more read as an int (PREFLIGHT_STORAGE,
 DO_SET_MISSION_CURRENT), SET_MODE with a custom mode of 2^30 or more, SET_MODE and
 DO_SET_MODE with flags a board without a mode table refuses, DO_SET_HOME at a position
-(floats, ints past 2^30) and at a float32 altitude of 3e38. Each is answered, none is a
-fault. The frames that are not rare events take nothing from the heap.
+(floats, ints past 2^30) and at a float32 altitude of 3e38, and SET_MESSAGE_INTERVAL of
+1e9 us while the radio's RADIO_STATUS squeezes the link (the stretched interval passed 2^30
+on the way). Each is answered, none is a fault. The frames that are not rare events take
+nothing from the heap.
 
     fuzz_found.py
 Prints `ok faults=0 acks=N home_refused=N home=N requested=N`, or FAIL and the same.
@@ -65,6 +67,16 @@ def main():
             b.run(2)
             if b.ack_command == 179:
                 HOME[b.ack_result == 0] += 1
+    finally:
+        micropython.heap_unlock()
+    radio = b.gcs(51, 68)  # a SiK radio: its buffer full, the link's budget squeezed
+    squeeze = [radio.frame(109, 0, 0, 100, 100, 0, 0, 0) for _ in range(6)]
+    squeeze += [g.command(511, 30.0, 1.0e9), g.command(511, 33.0, 1000.0), g.command(511, 24.0, 1000.0)]
+    micropython.heap_lock()
+    try:
+        for f in squeeze:
+            b.send(f)
+            b.run(2)
     finally:
         micropython.heap_unlock()
     faults = sum(b.ep.faults.counts)

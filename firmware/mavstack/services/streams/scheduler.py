@@ -109,10 +109,10 @@ def _stretch(interval_us, demand, avail):
     if r > _RATIO_MAX:  # over 64 times the budget: whole multiples are fine enough
         q = (demand + avail - 1) // avail
         return MAX_INTERVAL_US if interval_us > MAX_INTERVAL_US // q else interval_us * q
-    hi = (interval_us >> 12) * r
-    if hi >= MAX_INTERVAL_US:
+    q = interval_us >> 12
+    if q and r > (MAX_INTERVAL_US - 1) // q:  # q * r >= MAX_INTERVAL_US (it may pass 2^30)
         return MAX_INTERVAL_US
-    return hi + (((interval_us & 4095) * r + 4095) >> 12)
+    return q * r + (((interval_us & 4095) * r + 4095) >> 12)
 
 
 # --- every tick (allocation-free; small frames: see docs/design.md) ---------------------
