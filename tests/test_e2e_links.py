@@ -1,0 +1,353 @@
+"""Routing and peripheral mode end to end: the unix vehicle with three links, UDP to a
+ground station (pymavlink, and MAVSDK on the same port), a pty to the emulated Cortex-M0
+running mavstack as a distance-sensor peripheral (boards/qemu_m0_rangefinder.py, system
+id followed from the vehicle's HEARTBEAT, component 158), a pty to a pymavlink companion
+(system 2, component 191). The peripheral's pty passes through a tap (pty_relay.PtyRelay
+with far_dev) that records what the vehicle sends it. Through the vehicle: the station
+sees the peripheral, lists, reads and sets its parameters and commands it; its data
+reach the station; the station and the companion reach each other; PINGs in the style of
+mavlink-router's routing test reach exactly the right links; MAVSDK sees one vehicle and
+flies it. One vehicle and one board for the whole file (docs/routing.md, end to end)."""
+import contextlib
+import os
+import threading
+import time
+
+import pytest
+
+from conftest import free_udp_port, recv
+from pty_relay import TO_GCS, PtyRelay
+from test_mcu import _gate
+from vehicle import Vehicle
+
+BOARD = "qemu_m0_rangefinder"
+VEHICLE = (1, 1)
+PERIPHERAL = (1, 158)
+COMPANION = (2, 191)
+STATION = (255, 190)
+FAST = ("--set", "sim_speed=40", "--set", "sim_climb=20")
+MAV_CMD_USER_1 = 31010  # the rangefinder's pause (0) and resume (1)
+
+
+def until(check, timeout=10.0, every=0.05):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        got = check()
+        if got:
+            return got
+        time.sleep(every)
+    return None
+
+
+def src(msg):
+    return msg.get_srcSystem(), msg.get_srcComponent()
+
+
+class Rig:
+    """The vehicle, the board, the tap on the peripheral's line, the station and the
+    companion; a thread sends the station's and the companion's HEARTBEATs at 1 Hz so the
+    vehicle keeps their routes (every send goes through one lock)."""
+
+    def __init__(self, stack, storage):
+        from pymavlink import mavutil
+        from mcu_rig import EmulatedBoard
+
+        self.board = stack.enter_context(EmulatedBoard(BOARD))
+        self.peripheral_pty, self.ready = self.board.start_peripheral()
+        self.tap = PtyRelay(rate=0.0, far_dev=self.peripheral_pty, record=True)
+        stack.callback(self.tap.close)
+        self.cable = PtyRelay(rate=0.0)
+        stack.callback(self.cable.close)
+        self.port = free_udp_port()
+        self.v = Vehicle(storage, links=["udpin:127.0.0.1:%d" % self.port,
+                                         "serial:%s:115200" % self.tap.vehicle_dev,
+                                         "serial:%s:115200" % self.cable.vehicle_dev], args=list(FAST)).start()
+        stack.callback(self.v.stop)
+        self.lock = threading.Lock()
+        self.gcs = self._locked(mavutil.mavlink_connection("udpout:127.0.0.1:%d" % self.port, source_system=255,
+                                                           source_component=190, dialect="common"))
+        stack.callback(self.gcs.close)
+        self.comp = self._locked(mavutil.mavlink_connection(self.cable.gcs_dev, baud=115200, source_system=2,
+                                                            source_component=191, dialect="common"))
+        stack.callback(self.comp.close)
+        self._parser = mavutil.mavlink.MAVLink(None)
+        self._parser.robust_parsing = True
+        self._stop = threading.Event()
+        self._beats = threading.Thread(target=self._beat, daemon=True)
+        self._beats.start()
+        stack.callback(self._beats.join)
+        stack.callback(self._stop.set)
+
+    def _locked(self, m):
+        send = m.mav.send
+
+        def locked(msg, force_mavlink1=False):
+            with self.lock:
+                send(msg, force_mavlink1=force_mavlink1)
+
+        m.mav.send = locked
+        return m
+
+    def _beat(self):
+        while True:
+            self.gcs.mav.heartbeat_send(6, 8, 0, 0, 0)  # MAV_TYPE_GCS
+            self.comp.mav.heartbeat_send(18, 8, 0, 0, 4)  # MAV_TYPE_ONBOARD_CONTROLLER
+            if self._stop.wait(1.0):
+                return
+
+    def to_peripheral(self, start=0):
+        """The messages the vehicle sent down the peripheral's line, from frame `start` on."""
+        out = []
+        for f in list(self.tap.frames[TO_GCS][start:]):
+            msg = self._parser.parse_char(f)
+            if msg is not None and msg.get_type() != "BAD_DATA":
+                out.append(msg)
+        return out
+
+    def mark(self):
+        return len(self.tap.frames[TO_GCS])
+
+    def drain(self, seconds=0.3):
+        end = time.time() + seconds
+        while time.time() < end:
+            for m in (self.gcs, self.comp):
+                while m.recv_match(blocking=False) is not None:
+                    pass
+            time.sleep(0.01)
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    _gate()
+    os.environ["MAVLINK20"] = "1"
+    t0 = time.time()
+    with contextlib.ExitStack() as stack:
+        r = Rig(stack, tmp_path_factory.mktemp("e2e") / "storage")
+        # Everyone heard by the station: the vehicle, the peripheral behind it (once it has
+        # heard the vehicle's HEARTBEAT), the companion.
+        seen = set()
+        deadline = time.time() + 30
+        while len(seen) < 3 and time.time() < deadline:
+            hb = recv(r.gcs, "HEARTBEAT", 0.5)
+            if hb is not None and src(hb) in (VEHICLE, PERIPHERAL, COMPANION):
+                seen.add(src(hb))
+            r.v.check_alive()
+        assert len(seen) == 3, (seen, r.ready, r.v.output())
+        print("\n%s; all three heard by the station %.1f s after start" % (r.ready, time.time() - t0))
+        yield r
+        r.v.check_alive()
+
+
+def test_station_sees_the_peripheral_and_its_measurements(rig):
+    """Its HEARTBEAT (the vehicle's system id, component 158, MAV_AUTOPILOT_INVALID) and
+    DISTANCE_SENSOR at about 10 Hz reach the station, and the companion (broadcast)."""
+    hb = recv(rig.gcs, "HEARTBEAT", 5, lambda h: src(h) == PERIPHERAL)
+    assert hb is not None and hb.autopilot == 8 and hb.type == 0
+    rig.drain()
+    got = []
+    end = time.time() + 2.0
+    while time.time() < end:
+        ds = recv(rig.gcs, "DISTANCE_SENSOR", 0.5)
+        if ds is not None:
+            assert src(ds) == PERIPHERAL and 100 <= ds.current_distance <= 400
+            got.append(ds.time_boot_ms)
+    assert len(got) >= 12, got  # 10 Hz for 2 s, less what the emulated board's pace takes
+    assert recv(rig.gcs, "NAMED_VALUE_INT", 3, lambda n: src(n) == PERIPHERAL and n.name == "RNG_COUNT")
+    assert recv(rig.comp, "DISTANCE_SENSOR", 3, lambda d: src(d) == PERIPHERAL) is not None
+
+
+def test_station_heartbeat_reaches_the_peripheral_and_the_companion(rig):
+    """Broadcast: the station's HEARTBEAT goes down both ptys; nothing the peripheral
+    sent comes back down its own line."""
+    start = rig.mark()
+    assert recv(rig.comp, "HEARTBEAT", 5, lambda h: src(h) == STATION) is not None
+    assert until(lambda: any(m.get_type() == "HEARTBEAT" and src(m) == STATION for m in rig.to_peripheral(start)), 5)
+    assert not [m for m in rig.to_peripheral(start) if src(m) == PERIPHERAL]
+
+
+def test_peripheral_parameters_by_component(rig):
+    """PARAM_REQUEST_LIST to component 158 lists its five from 158 and the vehicle stays
+    out; to component 0 both answer, each from its own id; PARAM_SET and
+    PARAM_REQUEST_READ by component; the setting shows in DISTANCE_SENSOR."""
+    g = rig.gcs
+    names = ["RNGFND_MAX_CM", "RNGFND_MIN_CM", "RNGFND_ORIENT", "RNGFND_RATE_HZ", "RNGFND_TYPE"]
+
+    def listing(target_comp, want_vehicle):
+        rig.drain()
+        g.mav.param_request_list_send(1, target_comp)
+        got, vehicle = {}, 0
+        end = time.time() + 15
+        while time.time() < end and (len(got) < 5 or (want_vehicle and not vehicle)):
+            p = recv(g, "PARAM_VALUE", 1)
+            if p is None:
+                continue
+            if src(p) == PERIPHERAL:
+                assert p.param_count == 5
+                got[p.param_id] = p.param_value
+            elif src(p) == VEHICLE:
+                vehicle += 1
+        return got, vehicle
+
+    got, vehicle = listing(158, False)
+    assert sorted(got) == names and vehicle == 0, (got, vehicle)
+    time.sleep(1.0)
+    assert recv(g, "PARAM_VALUE", 0.5, lambda p: src(p) == VEHICLE) is None
+    got, vehicle = listing(0, True)
+    assert sorted(got) == names and vehicle > 0, (got, vehicle)
+    time.sleep(3)  # (the vehicle's own list runs out)
+    g.mav.param_set_send(1, 158, b"RNGFND_MAX_CM", 550.0, 9)
+    p = recv(g, "PARAM_VALUE", 5, lambda p: p.param_id == "RNGFND_MAX_CM")
+    assert p is not None and src(p) == PERIPHERAL and p.param_value == 550.0
+    g.mav.param_request_read_send(1, 158, b"RNGFND_MAX_CM", -1)
+    p = recv(g, "PARAM_VALUE", 5, lambda p: p.param_id == "RNGFND_MAX_CM")
+    assert p is not None and src(p) == PERIPHERAL and p.param_value == 550.0
+    assert recv(g, "DISTANCE_SENSOR", 3, lambda d: d.max_distance == 550) is not None
+    g.mav.param_set_send(1, 158, b"RNGFND_MAX_CM", 700.0, 9)
+    assert recv(g, "PARAM_VALUE", 5, lambda p: p.param_id == "RNGFND_MAX_CM" and p.param_value == 700.0)
+
+
+def test_peripheral_commands_and_acks(rig):
+    """REQUEST_MESSAGE(DISTANCE_SENSOR) and the application's MAV_CMD_USER_1 addressed to
+    158 are ACKed by 158 (pause stops the data, resume restarts it); the vehicle, whose
+    component 158 has been heard on a link, leaves them alone."""
+    g = rig.gcs
+
+    def run(cmd, p1):
+        rig.drain()
+        g.mav.command_long_send(1, 158, cmd, 0, p1, 0, 0, 0, 0, 0, 0)
+        acks = []
+        end = time.time() + 3
+        while time.time() < end:
+            a = recv(g, "COMMAND_ACK", 0.2, lambda a: a.command == cmd)
+            if a is not None:
+                acks.append((src(a), a.result))
+        return acks
+
+    assert run(512, 132) == [(PERIPHERAL, 0)]
+    assert run(MAV_CMD_USER_1, 0) == [(PERIPHERAL, 0)]
+    time.sleep(0.3)
+    rig.drain()
+    assert recv(g, "DISTANCE_SENSOR", 1.5) is None  # paused
+    assert run(MAV_CMD_USER_1, 1) == [(PERIPHERAL, 0)]
+    assert recv(g, "DISTANCE_SENSOR", 3, lambda d: src(d) == PERIPHERAL) is not None
+
+
+def test_companion_and_station_reach_each_other(rig):
+    """The companion's HEARTBEAT reaches the station; a command from the station to
+    system 2 reaches the companion alone (not the peripheral's line) and its ACK comes
+    back to the station."""
+    g, c = rig.gcs, rig.comp
+    hb = recv(g, "HEARTBEAT", 5, lambda h: src(h) == COMPANION)
+    assert hb is not None and hb.type == 18
+    rig.drain()
+    start = rig.mark()
+    g.mav.command_long_send(2, 191, MAV_CMD_USER_1, 0, 1, 0, 0, 0, 0, 0, 0)
+    cmd = recv(c, "COMMAND_LONG", 5, lambda m: m.command == MAV_CMD_USER_1)
+    assert cmd is not None and src(cmd) == STATION and cmd.target_system == 2
+    c.mav.command_ack_send(MAV_CMD_USER_1, 0, 0, 0, 255, 190)
+    a = recv(g, "COMMAND_ACK", 5, lambda a: a.command == MAV_CMD_USER_1)
+    assert a is not None and src(a) == COMPANION and a.result == 0
+    assert not [m for m in rig.to_peripheral(start) if m.get_type() in ("COMMAND_LONG", "COMMAND_ACK")]
+
+
+def collect(rig, start, seconds=1.0):
+    """{link: [(src, PING seq, target)]}: the PINGs each link got that the vehicle did not
+    make, the peripheral's line as the tap saw it from frame `start` on."""
+    got = {"gcs": [], "companion": [], "peripheral": []}
+    end = time.time() + seconds
+    while time.time() < end:
+        for name, m in (("gcs", rig.gcs), ("companion", rig.comp)):
+            msg = m.recv_match(type="PING", blocking=False)
+            while msg is not None:
+                if src(msg) != VEHICLE:
+                    got[name].append((src(msg), msg.seq, (msg.target_system, msg.target_component)))
+                msg = m.recv_match(type="PING", blocking=False)
+        time.sleep(0.01)
+    for msg in rig.to_peripheral(start):
+        if msg.get_type() == "PING" and src(msg) != VEHICLE:
+            got["peripheral"].append((src(msg), msg.seq, (msg.target_system, msg.target_component)))
+    return got
+
+
+def test_pings_across_the_three_links(rig):
+    """mavlink-router's routing test on a station (UDP), a peripheral and a companion
+    (ptys): broadcasts reach every other link, a targeted PING only the link its target
+    was heard on, the first to an unknown system none, and nothing comes back to its
+    sender. (The vehicle's own PING answers aside.)"""
+    g, c = rig.gcs, rig.comp
+    rig.drain()
+    cases = [
+        (g, (77, 1), []),  # an unknown system: dropped
+        (g, (0, 0), ["companion", "peripheral"]),  # broadcast
+        (g, (2, 191), ["companion"]),
+        (g, (2, 0), ["companion"]),  # a system, any component
+        (g, (1, 158), ["peripheral"]),  # a component behind the vehicle
+        (g, (1, 0), ["peripheral"]),  # our system, every component
+        (g, (1, 1), []),  # the vehicle's alone
+        (c, (0, 0), ["gcs", "peripheral"]),
+        (c, (255, 190), ["gcs"]),
+        (c, (1, 158), ["peripheral"]),
+        (c, (78, 1), []),
+    ]
+    for seq, (m, target, where) in enumerate(cases, 200):
+        start = rig.mark()
+        m.mav.ping_send(1, seq, *target)
+        got = collect(rig, start)
+        sender = STATION if m is g else COMPANION
+        want = {name: ([(sender, seq, target)] if name in where else []) for name in got}
+        assert got == want, (target, got)
+    # The vehicle answers a request (a broadcast PING) to its sender alone.
+    rig.drain()
+    g.mav.ping_send(1, 300, 0, 0)
+    ans = recv(g, "PING", 3, lambda p: src(p) == VEHICLE and p.seq == 300)
+    assert ans is not None and (ans.target_system, ans.target_component) == STATION
+    assert recv(c, "PING", 1, lambda p: src(p) == VEHICLE) is None
+    # The peripheral's broadcasts (DISTANCE_SENSOR) reach both others, never its own line.
+    start = rig.mark()
+    assert recv(g, "DISTANCE_SENSOR", 2, lambda d: src(d) == PERIPHERAL)
+    assert recv(c, "DISTANCE_SENSOR", 2, lambda d: src(d) == PERIPHERAL)
+    assert not [m for m in rig.to_peripheral(start) if src(m) == PERIPHERAL]
+
+
+def test_mavsdk_sees_one_vehicle_and_flies_it(rig):
+    """MAVSDK on the station's UDP port: one system (1), whose autopilot is the vehicle
+    (GENERIC) although component 158 of that system says MAV_AUTOPILOT_INVALID; it arms,
+    takes off to 2 m and lands, the peripheral's HEARTBEATs and DISTANCE_SENSOR reaching
+    MAVSDK meanwhile."""
+    from mavsdk.autopilot import Autopilot
+    from mavsdk.plugins.action import Action
+    from mavsdk.plugins.mavlink_direct import MavlinkDirect
+    from mavsdk.plugins.telemetry import LandedState, Telemetry
+
+    from gcs_tools import mavsdk_system
+
+    seen = []
+    t0 = time.time()
+    with mavsdk_system(rig.port) as system:
+        direct = MavlinkDirect(system)
+        handles = [direct.subscribe_message(name, lambda m, ud: seen.append((m.message_name, m.system_id,
+                                                                               m.component_id)))
+                   for name in ("HEARTBEAT", "DISTANCE_SENSOR")]
+        try:
+            action, tel = Action(system), Telemetry(system)
+            assert system.get_system_id() == 1 and system.has_autopilot()
+            assert system.autopilot_type() == Autopilot.GENERIC, system.autopilot_type()
+            assert until(lambda: tel.landed_state() == LandedState.ON_GROUND and not tel.armed(), 20)
+            action.set_takeoff_altitude(2.0)
+            action.arm()
+            action.takeoff()
+            assert until(lambda: abs(tel.position().relative_altitude_m - 2.0) < 0.1, 30), tel.position()
+            action.land()
+            assert until(lambda: tel.landed_state() == LandedState.ON_GROUND and not tel.armed(), 40)
+            # One vehicle all the while: the peripheral's heartbeats made no second one (the
+            # companion, system 2, is a system without an autopilot).
+            systems = {s.get_system_id(): s.has_autopilot() for s in system.sdk.get_systems()}
+            assert systems == {1: True, 2: False}, systems
+        finally:
+            for h in handles:
+                direct.unsubscribe_message(h)
+    flight = time.time() - t0
+    assert ("HEARTBEAT", 1, 158) in seen and ("DISTANCE_SENSOR", 1, 158) in seen, sorted(set(seen))
+    print("\nMAVSDK: connected, armed, took off to 2 m and landed in %.1f s; %d peripheral frames seen" %
+          (flight, sum(1 for s in seen if s[2] == 158)))
+
