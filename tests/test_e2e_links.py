@@ -141,27 +141,30 @@ def rig(tmp_path_factory):
 def test_station_sees_the_peripheral_and_its_measurements(rig):
     """Its HEARTBEAT (the vehicle's system id, component 158, MAV_AUTOPILOT_INVALID) and
     DISTANCE_SENSOR at about 10 Hz reach the station, and the companion (broadcast)."""
-    hb = recv(rig.gcs, "HEARTBEAT", 5, lambda h: src(h) == PERIPHERAL)
+    hb = recv(rig.gcs, "HEARTBEAT", 10, lambda h: src(h) == PERIPHERAL)
     assert hb is not None and hb.autopilot == 8 and hb.type == 0
     rig.drain()
     got = []
-    end = time.time() + 2.0
-    while time.time() < end:
+    end = time.time() + 15
+    while time.time() < end and len(got) < 20:
         ds = recv(rig.gcs, "DISTANCE_SENSOR", 0.5)
         if ds is not None:
             assert src(ds) == PERIPHERAL and 100 <= ds.current_distance <= 400
             got.append(ds.time_boot_ms)
-    assert len(got) >= 12, got  # 10 Hz for 2 s, less what the emulated board's pace takes
-    assert recv(rig.gcs, "NAMED_VALUE_INT", 3, lambda n: src(n) == PERIPHERAL and n.name == "RNG_COUNT")
-    assert recv(rig.comp, "DISTANCE_SENSOR", 3, lambda d: src(d) == PERIPHERAL) is not None
+    # At the board's pace (its time_boot_ms; a busy host may slow the emulated board).
+    assert len(got) == 20 and got == sorted(got), got
+    rate = 19 * 1000.0 / (got[-1] - got[0])
+    assert 5 < rate < 12, rate
+    assert recv(rig.gcs, "NAMED_VALUE_INT", 10, lambda n: src(n) == PERIPHERAL and n.name == "RNG_COUNT")
+    assert recv(rig.comp, "DISTANCE_SENSOR", 10, lambda d: src(d) == PERIPHERAL) is not None
 
 
 def test_station_heartbeat_reaches_the_peripheral_and_the_companion(rig):
     """Broadcast: the station's HEARTBEAT goes down both ptys; nothing the peripheral
     sent comes back down its own line."""
     start = rig.mark()
-    assert recv(rig.comp, "HEARTBEAT", 5, lambda h: src(h) == STATION) is not None
-    assert until(lambda: any(m.get_type() == "HEARTBEAT" and src(m) == STATION for m in rig.to_peripheral(start)), 5)
+    assert recv(rig.comp, "HEARTBEAT", 10, lambda h: src(h) == STATION) is not None
+    assert until(lambda: any(m.get_type() == "HEARTBEAT" and src(m) == STATION for m in rig.to_peripheral(start)), 10)
     assert not [m for m in rig.to_peripheral(start) if src(m) == PERIPHERAL]
 
 
@@ -196,14 +199,14 @@ def test_peripheral_parameters_by_component(rig):
     assert sorted(got) == names and vehicle > 0, (got, vehicle)
     time.sleep(3)  # (the vehicle's own list runs out)
     g.mav.param_set_send(1, 158, b"RNGFND_MAX_CM", 550.0, 9)
-    p = recv(g, "PARAM_VALUE", 5, lambda p: p.param_id == "RNGFND_MAX_CM")
+    p = recv(g, "PARAM_VALUE", 10, lambda p: p.param_id == "RNGFND_MAX_CM")
     assert p is not None and src(p) == PERIPHERAL and p.param_value == 550.0
     g.mav.param_request_read_send(1, 158, b"RNGFND_MAX_CM", -1)
-    p = recv(g, "PARAM_VALUE", 5, lambda p: p.param_id == "RNGFND_MAX_CM")
+    p = recv(g, "PARAM_VALUE", 10, lambda p: p.param_id == "RNGFND_MAX_CM")
     assert p is not None and src(p) == PERIPHERAL and p.param_value == 550.0
-    assert recv(g, "DISTANCE_SENSOR", 3, lambda d: d.max_distance == 550) is not None
+    assert recv(g, "DISTANCE_SENSOR", 10, lambda d: d.max_distance == 550) is not None
     g.mav.param_set_send(1, 158, b"RNGFND_MAX_CM", 700.0, 9)
-    assert recv(g, "PARAM_VALUE", 5, lambda p: p.param_id == "RNGFND_MAX_CM" and p.param_value == 700.0)
+    assert recv(g, "PARAM_VALUE", 10, lambda p: p.param_id == "RNGFND_MAX_CM" and p.param_value == 700.0)
 
 
 def test_mavproxy_sees_the_peripheral_and_sets_its_parameter(rig, tmp_path):
@@ -221,10 +224,10 @@ def test_mavproxy_sees_the_peripheral_and_sets_its_parameter(rig, tmp_path):
         assert int(mp.expect(r"Received (\d+) parameters", 30).group(1)) == 5
         rig.drain()
         mp.say("param set RNGFND_MIN_CM 25")
-        p = recv(rig.gcs, "PARAM_VALUE", 10, lambda p: p.param_id == "RNGFND_MIN_CM" and p.param_value == 25.0)
+        p = recv(rig.gcs, "PARAM_VALUE", 20, lambda p: p.param_id == "RNGFND_MIN_CM" and p.param_value == 25.0)
         assert p is not None and src(p) == PERIPHERAL, "".join(mp.seen)
         mp.say("param set RNGFND_MIN_CM 20")
-        assert recv(rig.gcs, "PARAM_VALUE", 10, lambda p: p.param_id == "RNGFND_MIN_CM" and p.param_value == 20.0)
+        assert recv(rig.gcs, "PARAM_VALUE", 20, lambda p: p.param_id == "RNGFND_MIN_CM" and p.param_value == 20.0)
     finally:
         mp.close()
 
@@ -236,23 +239,26 @@ def test_peripheral_commands_and_acks(rig):
     g = rig.gcs
 
     def run(cmd, p1):
+        """-> the ACKs: the first (within 10 s), then any more within a second; what
+        else comes meanwhile is read and dropped."""
         rig.drain()
         g.mav.command_long_send(1, 158, cmd, 0, p1, 0, 0, 0, 0, 0, 0)
-        acks = []
-        end = time.time() + 2  # (long enough for a second ACK to show, were there one)
-        while time.time() < end:
-            a = recv(g, "COMMAND_ACK", 0.2, lambda a: a.command == cmd)
-            if a is not None:
-                acks.append((src(a), a.result))
+        a = recv(g, "COMMAND_ACK", 10, lambda a: a.command == cmd)
+        acks = [] if a is None else [(src(a), a.result)]
+        end = time.time() + 1
+        while a is not None and time.time() < end:
+            a2 = recv(g, "COMMAND_ACK", 0.1, lambda a: a.command == cmd)
+            if a2 is not None:
+                acks.append((src(a2), a2.result))
         return acks
 
     assert run(512, 132) == [(PERIPHERAL, 0)]
+    # Paused: after its ACK nothing more (the board's frames keep their order through
+    # the vehicle, so a reading taken before the pause comes before the ACK).
     assert run(MAV_CMD_USER_1, 0) == [(PERIPHERAL, 0)]
-    time.sleep(0.3)
-    rig.drain()
-    assert recv(g, "DISTANCE_SENSOR", 1.5) is None  # paused
+    assert recv(g, "DISTANCE_SENSOR", 1.5) is None
     assert run(MAV_CMD_USER_1, 1) == [(PERIPHERAL, 0)]
-    assert recv(g, "DISTANCE_SENSOR", 3, lambda d: src(d) == PERIPHERAL) is not None
+    assert recv(g, "DISTANCE_SENSOR", 10, lambda d: src(d) == PERIPHERAL) is not None
 
 
 def test_companion_and_station_reach_each_other(rig):
@@ -260,36 +266,51 @@ def test_companion_and_station_reach_each_other(rig):
     system 2 reaches the companion alone (not the peripheral's line) and its ACK comes
     back to the station."""
     g, c = rig.gcs, rig.comp
-    hb = recv(g, "HEARTBEAT", 5, lambda h: src(h) == COMPANION)
+    hb = recv(g, "HEARTBEAT", 10, lambda h: src(h) == COMPANION)
     assert hb is not None and hb.type == 18
     rig.drain()
     start = rig.mark()
     g.mav.command_long_send(2, 191, MAV_CMD_USER_1, 0, 1, 0, 0, 0, 0, 0, 0)
-    cmd = recv(c, "COMMAND_LONG", 5, lambda m: m.command == MAV_CMD_USER_1)
+    cmd = recv(c, "COMMAND_LONG", 10, lambda m: m.command == MAV_CMD_USER_1)
     assert cmd is not None and src(cmd) == STATION and cmd.target_system == 2
     c.mav.command_ack_send(MAV_CMD_USER_1, 0, 0, 0, 255, 190)
-    a = recv(g, "COMMAND_ACK", 5, lambda a: a.command == MAV_CMD_USER_1)
+    a = recv(g, "COMMAND_ACK", 10, lambda a: a.command == MAV_CMD_USER_1)
     assert a is not None and src(a) == COMPANION and a.result == 0
+    time.sleep(0.5)  # (the tap's thread is behind the companion's reads, if at all)
     assert not [m for m in rig.to_peripheral(start) if m.get_type() in ("COMMAND_LONG", "COMMAND_ACK")]
 
 
-def collect(rig, start, seconds=1.0):
+MARKER = 0xFFFF  # the seq of the broadcast PING that closes each case
+
+
+def collect(rig, start, sender, timeout=15.0):
     """{link: [(src, PING seq, target)]}: the PINGs each link got that the vehicle did not
-    make, the peripheral's line as the tap saw it from frame `start` on."""
+    make, the peripheral's line as the tap saw it from frame `start` on, until a broadcast
+    PING (seq MARKER) from the same sender has reached the other two links. The vehicle
+    keeps a link's frames in order, so what the case's PING led to is in by then, however
+    busy the machine; then a quarter second more, for anything sent back to the sender."""
     got = {"gcs": [], "companion": [], "peripheral": []}
-    end = time.time() + seconds
-    while time.time() < end:
+    others = [name for name in got if name != sender]
+    sender_m = rig.gcs if sender == "gcs" else rig.comp
+    sender_m.mav.ping_send(1, MARKER, 0, 0)
+    marked = set()
+    end, after = time.time() + timeout, None
+    while time.time() < end and (after is None or time.time() < after):
         for name, m in (("gcs", rig.gcs), ("companion", rig.comp)):
             msg = m.recv_match(type="PING", blocking=False)
             while msg is not None:
                 if src(msg) != VEHICLE:
                     got[name].append((src(msg), msg.seq, (msg.target_system, msg.target_component)))
                 msg = m.recv_match(type="PING", blocking=False)
+        got["peripheral"] = [(src(msg), msg.seq, (msg.target_system, msg.target_component))
+                             for msg in rig.to_peripheral(start) if msg.get_type() == "PING" and src(msg) != VEHICLE]
+        marked = {name for name in others if any(p[1] == MARKER for p in got[name])}
+        if after is None and len(marked) == 2:
+            after = time.time() + 0.25
         time.sleep(0.01)
-    for msg in rig.to_peripheral(start):
-        if msg.get_type() == "PING" and src(msg) != VEHICLE:
-            got["peripheral"].append((src(msg), msg.seq, (msg.target_system, msg.target_component)))
-    return got
+    assert len(marked) == 2, ("the marker PING did not get through", got)
+    marker = (STATION if sender == "gcs" else COMPANION, MARKER, (0, 0))
+    return {name: [p for p in pings if p != marker] for name, pings in got.items()}
 
 
 def test_pings_across_the_three_links(rig):
@@ -315,20 +336,20 @@ def test_pings_across_the_three_links(rig):
     for seq, (m, target, where) in enumerate(cases, 200):
         start = rig.mark()
         m.mav.ping_send(1, seq, *target)
-        got = collect(rig, start)
+        got = collect(rig, start, "gcs" if m is g else "companion")
         sender = STATION if m is g else COMPANION
         want = {name: ([(sender, seq, target)] if name in where else []) for name in got}
         assert got == want, (target, got)
     # The vehicle answers a request (a broadcast PING) to its sender alone.
     rig.drain()
     g.mav.ping_send(1, 300, 0, 0)
-    ans = recv(g, "PING", 3, lambda p: src(p) == VEHICLE and p.seq == 300)
+    ans = recv(g, "PING", 10, lambda p: src(p) == VEHICLE and p.seq == 300)
     assert ans is not None and (ans.target_system, ans.target_component) == STATION
     assert recv(c, "PING", 1, lambda p: src(p) == VEHICLE) is None
     # The peripheral's broadcasts (DISTANCE_SENSOR) reach both others, never its own line.
     start = rig.mark()
-    assert recv(g, "DISTANCE_SENSOR", 2, lambda d: src(d) == PERIPHERAL)
-    assert recv(c, "DISTANCE_SENSOR", 2, lambda d: src(d) == PERIPHERAL)
+    assert recv(g, "DISTANCE_SENSOR", 10, lambda d: src(d) == PERIPHERAL)
+    assert recv(c, "DISTANCE_SENSOR", 10, lambda d: src(d) == PERIPHERAL)
     assert not [m for m in rig.to_peripheral(start) if src(m) == PERIPHERAL]
 
 
