@@ -63,7 +63,7 @@ class Rig:
                                          "serial:%s:115200" % self.tap.vehicle_dev,
                                          "serial:%s:115200" % self.cable.vehicle_dev], args=list(FAST)).start()
         stack.callback(self.v.stop)
-        self.lock = threading.Lock()
+        self.lock = threading.RLock()
         self.gcs = self._locked(mavutil.mavlink_connection("udpout:127.0.0.1:%d" % self.port, source_system=255,
                                                            source_component=190, dialect="common"))
         stack.callback(self.gcs.close)
@@ -340,6 +340,17 @@ def test_pings_across_the_three_links(rig):
         sender = STATION if m is g else COMPANION
         want = {name: ([(sender, seq, target)] if name in where else []) for name in got}
         assert got == want, (target, got)
+    # System 77, unknown at first, speaks up on the companion's line: now the vehicle
+    # knows where it is, and a PING to it goes there alone.
+    with rig.lock:
+        c.mav.srcSystem, c.mav.srcComponent = 77, 1
+        c.mav.heartbeat_send(2, 3, 0, 0, 4)  # (a vehicle behind the companion, say)
+        c.mav.srcSystem, c.mav.srcComponent = COMPANION
+    assert recv(g, "HEARTBEAT", 10, lambda h: src(h) == (77, 1)) is not None
+    start = rig.mark()
+    g.mav.ping_send(1, 299, 77, 1)
+    got = collect(rig, start, "gcs")
+    assert got == {"gcs": [], "companion": [(STATION, 299, (77, 1))], "peripheral": []}, got
     # The vehicle answers a request (a broadcast PING) to its sender alone.
     rig.drain()
     g.mav.ping_send(1, 300, 0, 0)
