@@ -17,6 +17,7 @@ import pytest
 
 from conftest import free_udp_port, recv
 from pty_relay import TO_GCS, PtyRelay
+from test_gcs_walls import until
 from test_mcu import _gate
 from vehicle import Vehicle
 
@@ -27,16 +28,6 @@ COMPANION = (2, 191)
 STATION = (255, 190)
 FAST = ("--set", "sim_speed=40", "--set", "sim_climb=20")
 MAV_CMD_USER_1 = 31010  # the rangefinder's pause (0) and resume (1)
-
-
-def until(check, timeout=10.0, every=0.05):
-    deadline = time.time() + timeout
-    while time.time() < deadline:
-        got = check()
-        if got:
-            return got
-        time.sleep(every)
-    return None
 
 
 def src(msg):
