@@ -355,6 +355,32 @@ def test_pings_across_the_three_links(rig):
     assert not [m for m in rig.to_peripheral(start) if src(m) == PERIPHERAL]
 
 
+def test_commands_for_every_component_of_the_system(rig):
+    """COMMAND_LONG to (1, 0) reaches the vehicle and the peripheral, and each answers
+    for itself: arming is the vehicle's alone (the peripheral, which has none, stays
+    quiet: ACK_UNSUPPORTED_BROADCAST False); REQUEST_MESSAGE(DISTANCE_SENSOR) is
+    ACCEPTED by 158 (the vehicle, which has no such message, answers for itself too)."""
+    g = rig.gcs
+
+    def acks(cmd, p1):
+        rig.drain()
+        g.mav.command_long_send(1, 0, cmd, 0, p1, 0, 0, 0, 0, 0, 0)
+        got = []
+        end = time.time() + 10
+        while time.time() < end and len(got) < 2:
+            a = recv(g, "COMMAND_ACK", 0.2, lambda a: a.command == cmd)
+            if a is not None:
+                got.append((src(a), a.result))
+            elif got and time.time() > end - 8:
+                break  # (two seconds at least with the first in hand)
+        return dict(got)
+
+    assert acks(400, 1) == {VEHICLE: 0}  # armed
+    assert acks(400, 0) == {VEHICLE: 0}  # and disarmed
+    got = acks(512, 132)
+    assert got.get(PERIPHERAL) == 0 and set(got) <= {VEHICLE, PERIPHERAL}, got
+
+
 def test_mavsdk_sees_one_vehicle_and_flies_it(rig):
     """MAVSDK on the station's UDP port: one system (1), whose autopilot is the vehicle
     (GENERIC) although component 158 of that system says MAV_AUTOPILOT_INVALID; it arms,
