@@ -49,7 +49,7 @@ mcu-firmware: setup mcu-tools
 	$(PY) mcu/firmware.py build
 
 mcu-test: setup mcu-tools
-	$(PY) -m pytest -q tests/test_mcu.py tests/test_mcu_vehicle.py tests/test_mcu_peripheral.py tests/test_flash_mcu.py
+	$(PY) -m pytest -q tests/test_mcu.py tests/test_mcu_vehicle.py tests/test_mcu_peripheral.py tests/test_e2e_links.py tests/test_flash_mcu.py
 
 # The fuzzer for SECONDS: the unix port's vehicles (both dialects) over UDP, growing the
 # corpus in tests/fuzz/corpus/ (tests/fuzz/engine.py); a one-minute run is part of `make test`.

@@ -181,6 +181,7 @@ def mavsdk_system(port, identity=None):
         sdk.add_any_connection("udpout://127.0.0.1:%d" % port)
         system = sdk.first_autopilot(20.0)
         assert system is not None, "MAVSDK found no autopilot"
+        system.sdk = sdk  # (what else it sees: system.sdk.get_systems())
         yield system
     finally:
         sdk.destroy()

@@ -7,6 +7,10 @@ back whole MAVLink frames, as relay.LossyRelay does for UDP datagrams.
     r.stats                         frames, dropped, duplicated, delayed
     r.close()
 
+PtyRelay(rate=0.0, far_dev=PATH, record=True) is a tap on a serial line: its far side is
+an existing device (an emulated board's UART pty) instead of a second pty, and r.frames
+holds the whole frames that passed each way (r.frames[TO_GCS]: to the far side).
+
 Bytes between frames (noise, a frame cut short) pass through as they came.
 """
 import heapq
@@ -55,13 +59,20 @@ def split_frames(buf):
 
 
 class PtyRelay:
-    def __init__(self, rate=0.2, delay=(0.001, 0.02), seed=1):
+    def __init__(self, rate=0.2, delay=(0.001, 0.02), seed=1, far_dev=None, record=False):
         self.rng = random.Random(seed)
         self.rate = rate
         self.delay = delay
         self.stats = {"frames": 0, "dropped": 0, "duplicated": 0, "delayed": 0}
         self._veh_master, self._veh_slave, self.vehicle_dev = _open_pty()
-        self._gcs_master, self._gcs_slave, self.gcs_dev = _open_pty()
+        if far_dev is None:
+            self._gcs_master, self._gcs_slave, self.gcs_dev = _open_pty()
+        else:
+            fd = os.open(far_dev, os.O_RDWR | os.O_NOCTTY)
+            tty.setraw(fd)
+            os.set_blocking(fd, False)
+            self._gcs_master, self._gcs_slave, self.gcs_dev = fd, None, far_dev
+        self.frames = {TO_VEHICLE: [], TO_GCS: []} if record else None
         self._pending = {TO_VEHICLE: b"", TO_GCS: b""}
         self._later = []
         self._n = 0
@@ -83,6 +94,8 @@ class PtyRelay:
                 self._write(fd, f)
                 continue
             self.stats["frames"] += 1
+            if self.frames is not None:
+                self.frames[way].append(f)
             if self.rng.random() < self.rate:
                 what = self.rng.randrange(3)
                 if what == 0:
@@ -123,6 +136,8 @@ class PtyRelay:
         self._stop = True
         self._thread.join(2)
         for fd in (self._veh_master, self._veh_slave, self._gcs_master, self._gcs_slave):
+            if fd is None:
+                continue
             try:
                 os.close(fd)
             except OSError:
