@@ -218,12 +218,15 @@ def run():
         for part, n in instructions(board).items():
             out["mcu_instr_%s_%s" % (part, tag)] = n
         for kind in ("idle", "pilot", "transfer"):
-            out["mcu_load_permille_%s_%s" % (kind, tag)] = load(board, kind)
+            try:  # a workload that fails loses its key (a missed floor), not the others'
+                out["mcu_load_permille_%s_%s" % (kind, tag)] = load(board, kind)
+            except Exception as e:
+                print("mcu_load %s %s: %s" % (board, kind, e), file=sys.stderr)
     return out
 
 
 def floors(results):
-    return [("mcu_load_permille_%s_m3 <= %d" % (k, v), results["mcu_load_permille_%s_m3" % k] <= v)
+    return [("mcu_load_permille_%s_m3 <= %d" % (k, v), results.get("mcu_load_permille_%s_m3" % k, 1e9) <= v)
             for k, v in TARGETS.items()]
 
 
