@@ -346,7 +346,9 @@ def test_out_of_sequence_items(rig):
     rig.send("mission_item_int", *rig.item_args(3, items[3]))
     assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [0]  # 0 or its request was lost
     rig.send("mission_item_int", *rig.item_args(0, items[0]))
-    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [8]  # 0..3 in: the window moves on
+    # 0..3 in: the window moves on; 1 too, the probe for a peer that serves requests
+    # only in order (it would stand after 0, resent, and refuse 8).
+    assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [8, 1]
     for seq in (4, 5, 6, 7, 8):
         rig.send("mission_item_int", *rig.item_args(seq, items[seq]))
     assert [r.seq for r in rig.take("MISSION_REQUEST_INT")] == [9]  # the last, once all else is in
@@ -711,7 +713,8 @@ def test_requests_fly_ahead(rig):
 
 
 def test_rerequest_follows_the_round_trip(rig):
-    """With a 100 ms round trip nothing is asked twice without cause; a lost item is
+    """With a 100 ms round trip nothing is asked twice without cause (the item after
+    the lost one is, once, to learn whether the peer serves in order); a lost item is
     asked again once the round trip (and its deviation) has passed, not 250 ms later."""
     items = plan(30, tag=7)
     peer = Peer(rig, items, delay=100, lose=(20,))
@@ -719,7 +722,7 @@ def test_rerequest_follows_the_round_trip(rig):
     times = [t for t, s in peer.asked if s == 20]
     assert len(times) == 2
     assert 100 <= times[1] - times[0] <= 200, times
-    assert len(peer.asked) == 31  # item 20 twice, the others once
+    assert len(peer.asked) == 32  # item 20 twice, 21 once more (the probe), the others once
 
 
 def test_items_queued_on_a_slow_link_are_late_not_lost(tmp_path):
@@ -733,3 +736,28 @@ def test_items_queued_on_a_slow_link_are_late_not_lost(tmp_path):
     assert peer.run() == ACCEPTED
     assert sorted(s for _, s in peer.asked) == list(range(100))
     assert peer.t < 100 * 9 + 100
+
+
+def test_an_inorder_peer_is_found_in_one_round_trip(rig):
+    """A MAVSDK-like station that resends a lost item stands after it, and refuses the
+    window asked past it. The vehicle asks for the item after the resent one at once as
+    well, and when that alone comes back walks the peer forward: no item waits for the
+    timer (MAVSDK gives up after half a second of refused requests)."""
+    items = plan(40, tag=9)
+    peer = Peer(rig, items, "inorder", delay=3, lose=(17,))
+    assert peer.run() == ACCEPTED
+    assert same(rig.download(), items)
+    resent = [t for t, s in peer.asked if s == 17][1]
+    walked = [t for t, s in peer.asked if s == 18 and t > resent]
+    assert walked and walked[0] - resent <= 10, (peer.asked, peer.sent)
+    assert peer.t < 150, peer.t
+
+
+def test_a_peer_that_serves_any_request_is_probed_once(rig):
+    """A station that answers the window past a resent item is not one that serves in
+    order: after the first probe, lost items cost no more requests than themselves."""
+    items = plan(60, tag=10)
+    peer = Peer(rig, items, "any", delay=3, lose=(10, 30, 50))
+    assert peer.run() == ACCEPTED
+    assert same(rig.download(), items)
+    assert len(peer.asked) == 60 + 3 + 1, peer.asked

@@ -51,6 +51,8 @@ class Upload(Transfer):
         self.cursor = 0  # the item after the last new one received: where the peer stands
         self.reach = 0  # the item after the furthest one received since the transfer began
         self.strict = False  # the peer serves requests only in order (see tick)
+        self.probe = -1  # the item asked below the window after a slide (see _slide), -2: no more
+        self.probed = 0  # seq << 16 | held when it was asked
         self.srtt8 = -1  # smoothed round trip, ms * 8 (-1: no sample yet)
         self.var4 = 0  # its mean deviation, ms * 4
         self.rto = retry_ms
@@ -72,6 +74,7 @@ class Upload(Transfer):
         self.mark = first + 1
         self.held = self.again = self.after = self.tries = 0
         self.strict = False
+        self.probe = -1
         self.current = -1 if first == 0 and keep == 0 else -2
         self.srtt8 = -1
         self.rto = self.retry_ms
@@ -130,7 +133,11 @@ class Upload(Transfer):
             return  # not asked for, or sent before this upload began (see above): ignored
         if seq < self.seq or self.held >> (seq - self.seq) & 1:
             # A copy of one already in: late copies must not move the cursor back, but
-            # one a peer that serves in order sent when asked does (it stands there).
+            # one a peer that serves in order sent when asked does (it stands there). The
+            # answer to the probe with nothing else in since: it serves in order.
+            if not self.strict and seq == self.probe:
+                self.strict = self.probed == self.seq << 16 | self.held
+                self.probe = -1 if self.strict else -2
             if self.strict:
                 self.cursor = seq + 1
                 self._ask_next(self.m.ep.now)
@@ -195,6 +202,15 @@ class Upload(Transfer):
         self._fill(now)
         if self.after >= _FAST:
             self._again(self.seq, now)
+        if self.cursor < self.seq and self.probe != -2:
+            # The peer's last item was one asked again, before the window: a peer that
+            # serves only in order stands there and refuses the window. Ask that item
+            # too; if it alone comes back, the peer is one (found within a round trip,
+            # not after two expiries of the timer, which a ground station's own timeout
+            # may not wait); if the window's items come first, it is not: no more probes.
+            self.probe = self.cursor
+            self.probed = self.seq << 16 | self.held
+            self._send(self.cursor)
 
     def _stage(self, p, seq, is_int):
         """Check item seq and write its record into the staging slot -> MAV_MISSION_RESULT."""
