@@ -9,6 +9,7 @@ import re
 import struct
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -73,6 +74,12 @@ def test_mip_install_from_the_checkout_runs_the_vehicle(board):
         assert "'main.py'" in listing and "'mavstack'" in listing and "'board.py'" in listing, listing
         b.reset()  # a soft reset to the friendly REPL: main.py runs from /flash
         hb, lines = wait_heartbeat(mav_pty, 240, b)
+        # The REPL's UART is read apart from MAVLink's: on a busy machine its line may come
+        # later than the first HEARTBEAT, and than wait_heartbeat's moment more.
+        end = time.time() + 10
+        while not any("qemu_m3 ready" in line for line in lines) and time.time() < end:
+            time.sleep(0.2)
+            lines += [line.strip() for line in b.console().splitlines() if line.strip()]
     finally:
         b.close()
     assert hb.type == 10 and hb.autopilot == 0  # boards/qemu.py: a ground rover, generic

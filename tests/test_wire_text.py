@@ -341,6 +341,9 @@ def test_seed_dialect(vehicle, seedmav, tmp_path):
         before = sorted(os.listdir(storage))
         uid = 7000
         for bad in BAD + [b"hello\xff.txt", b"\xc0\xae\xc0\xae/hello.txt"]:
+            # The station in control keeps sending its HEARTBEAT, as a ground station does
+            # (control lapses GCS_TIMEOUT_MS after the last: the writes would be refused).
+            g.send(g.message(0, b"", type=6, autopilot=8, mavlink_version=3))
             for msgid, given in ((111, {}), (110, {"direction": 1}), (110, {"direction": 0, "file_size": 5})):
                 uid += 1
                 msg = g.message(msgid, bad[:240], transfer_uid=uid, **given)
