@@ -29,7 +29,6 @@ _DENIED = const(2)
 
 _RESCALE_MS = const(1000)  # how often streams are fitted to the measured budget
 _MIN_INTERVAL_US = const(1000)  # one send per main-loop tick at most
-_PHASE_STEP_MS = const(37)
 
 # The seed's data stream groups, after ArduPilot's historical grouping: (MAV_DATA_STREAM,
 # message ids), a message in one group; 0 (ALL) is every group.
@@ -73,7 +72,6 @@ class Streams:
     def __init__(self, defaults=()):
         self.defaults = defaults  # ((msgid, hz), ...)
         self.links = []
-        self._phase = 0
         self._rescale_at = 0
 
     def attach(self, ep):
@@ -135,10 +133,10 @@ class Streams:
         s.achieved_us = want
         s.step_ms = want // 1000
         if want:
-            # Staggered start so that streams set together do not fall due together.
-            s.due = ticks_add(now, self._phase % (s.step_ms + 1))
+            # On the grid of its interval from tick 0: streams whose intervals divide
+            # each other fall due together and go in one tick (one wake of the loop).
+            s.due = ticks_add(now, -now % (s.step_ms or 1))
             s.frac = 0
-            self._phase += _PHASE_STEP_MS
 
     def set_interval(self, link, msgid, interval_us):
         """Interval for msgid on a link: > 0 us, 0 the board default, -1 off.
