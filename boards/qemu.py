@@ -8,7 +8,7 @@ once, so its ticks allocate nothing, as a real board's sensor code must not. On 
 whose REPL keeps UART 0, it also stops the vehicle on a Ctrl-C there, as a port's UART
 interrupt would (the qemu port has none): that is how `mavctl flash` gets the REPL back.
 """
-from mavstack.compat import ticks_add, ticks_diff
+from mavstack.compat import ticks_add, ticks_diff, to_grid
 
 DIALECT = "common"
 SYSID = 1
@@ -119,7 +119,7 @@ class StandingVehicle:
             return ticks_diff(self._next, now)
         # 4 Hz, the fastest default stream: the slots are sent at the rates asked for,
         # faster ones with the last values written (docs/boards.md).
-        self._next = ticks_add(now, _SENSOR_MS)
+        self._next = ticks_add(now, to_grid(now, _SENSOR_MS))  # with the streams' 4 Hz
         if self._repl_uart and _ctrl_c():
             raise self._interrupt
         z = self._zero
@@ -127,7 +127,7 @@ class StandingVehicle:
         tm.global_position(self.LAT, self.LON, self.ALT_MM, 0, 0, 0, 0, 0)
         tm.gps_raw(3, self.LAT, self.LON, self.ALT_MM, 100, 100, 0, 0, 12)
         tm.vfr_hud(z, z, 0, 0, z, z)
-        return _SENSOR_MS
+        return ticks_diff(self._next, now)
 
 
 _mem32 = None

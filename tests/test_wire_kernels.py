@@ -20,7 +20,7 @@ def kernel_cases(rnd, n):
         hx = data.hex() or "-"
         start = rnd.randint(0, size)
         end = rnd.randint(start, size)
-        op = rnd.randrange(4)
+        op = rnd.randrange(5)
         if op == 0:
             crc = rnd.choice([0xFFFF, 0, rnd.getrandbits(16)])
             lines.append("crc %s %d %d %d" % (hx, start, end, crc))
@@ -46,6 +46,23 @@ def kernel_cases(rnd, n):
             lines.append("copy %s %s %d %d %d" % (dst.hex(), src.hex() or "-", d, s, k))
             dst[d:d + k] = src[s:s + k]
             expect.append(dst.hex())
+        elif op == 4:  # a MAVLink 2 frame around a payload with trailing zeros, or none
+            plen = rnd.randint(1, 255)
+            payload = bytearray(rnd.randbytes(plen))
+            cut = rnd.randint(0, plen)
+            payload[cut:] = bytes(plen - cut)
+            buf = bytearray(rnd.randbytes(10)) + payload + rnd.randbytes(2 + 13)
+            extra = rnd.getrandbits(8)
+            info = plen << 16 | rnd.getrandbits(8) << 8 | extra
+            seq, sysid, compid, flags = (rnd.getrandbits(8) for _ in range(4))
+            flags &= 1
+            ids = seq | sysid << 8 | compid << 16 | flags << 24
+            msgid = rnd.getrandbits(24)
+            lines.append("seal %s %d %d %d" % (buf.hex(), info, ids, msgid))
+            kept = len(payload.rstrip(b"\0")) or 1
+            head = bytes([kept, flags, 0, seq, sysid, compid, msgid & 0xFF, msgid >> 8 & 0xFF, msgid >> 16])
+            crc = fastcrc.crc16.mcrf4xx(head + payload[:kept] + bytes([extra]), 0xFFFF)
+            expect.append((b"\xfd" + head + payload[:kept] + bytes([crc & 0xFF, crc >> 8])).hex())
         else:
             if not size:
                 data, hx, start, end = b"\x01", "01", 0, 1

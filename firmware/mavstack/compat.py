@@ -34,6 +34,14 @@ else:  # CPython
     from .compat_cpython import ticks_ms, ticks_us, ticks_diff, ticks_add, sleep_ms
 
 
+def to_grid(now, period):
+    """ms from now to the next point of period's grid (its multiples on the tick count)
+    at least an eighth of a period ahead: periodic work on one grid falls due together
+    and shares the loop's wakes, and a run a little early keeps its place (docs/core.md)."""
+    ms = period - now % period
+    return ms + period if ms < period >> 3 else ms
+
+
 # A rare event (a file save, a new UDP peer) may take from the heap even where the board
 # locks it after start-up (HEAP_LOCK guards the per-frame and per-tick paths): it opens
 # the lock for the event and closes it again. heap_unlock() says how deep the lock was.

@@ -7,8 +7,8 @@ Usage, allocation-free per frame:
 Reference: docs/core.md.
 """
 from .compat import const
-from .kernels import crc16, copy, zero
-from .parser import STX_V1, STX_V2, HEADER_V1, HEADER_V2, FRAME_MAX, IFLAG_SIGNED
+from .kernels import crc16, copy, seal_v2, zero
+from .parser import STX_V1, HEADER_V1, HEADER_V2, FRAME_MAX, IFLAG_SIGNED
 
 
 class Encoder:
@@ -42,54 +42,36 @@ class Encoder:
             zero(self.buf, off + n, info)
         return off
 
-    # finish and _seal keep few locals: docs/design.md.
+    # finish keeps few locals: docs/design.md.
     def finish(self, msgid, sysid, compid):
         info = self.crc_len.get(msgid)
         if info is None:
             return 0
         buf = self.buf
-        if self.version == 2:
-            # Trailing zeros are implied on the wire; the first byte always stays.
-            end = HEADER_V2 + (info >> 16)
-            while end > HEADER_V2 + 1 and buf[end - 1] == 0:
-                end -= 1
-            buf[0] = STX_V2
-            buf[1] = end - HEADER_V2
-            buf[2] = 0 if self.sign is None else IFLAG_SIGNED
-            buf[3] = 0
-            buf[4] = self.seq
-            buf[5] = sysid
-            buf[6] = compid
-            buf[7] = msgid & 0xFF
-            buf[8] = (msgid >> 8) & 0xFF
-            buf[9] = msgid >> 16
-        else:
-            if msgid > 255:
-                return 0
-            end = HEADER_V1 + ((info >> 8) & 0xFF)
-            buf[0] = STX_V1
-            buf[1] = end - HEADER_V1
-            buf[2] = self.seq
-            buf[3] = sysid
-            buf[4] = compid
-            buf[5] = msgid
+        if self.version == 2:  # header, trimmed payload and CRC in one kernel call
+            end = seal_v2(buf, info, self.seq | sysid << 8 | compid << 16 | (0 if self.sign is None else IFLAG_SIGNED << 24), msgid)
+            self._count()
+            return end if self.sign is None else end + self.sign(buf, end)
+        if msgid > 255:
+            return 0
+        end = HEADER_V1 + ((info >> 8) & 0xFF)
+        buf[0] = STX_V1
+        buf[1] = end - HEADER_V1
+        buf[2] = self.seq
+        buf[3] = sysid
+        buf[4] = compid
+        buf[5] = msgid
         # CRC_EXTRA goes where the CRC's first byte will, so one kernel call covers it.
         buf[end] = info & 0xFF
-        return self._seal(end)
-
-    def _seal(self, end):
-        """The CRC over buf[1:end + 1] into buf[end:end + 2], the sequence number on, the
-        signature if signing: returns the frame's length."""
-        buf = self.buf
         crc = crc16(buf, 1, end + 1, 0xFFFF)
         buf[end] = crc & 0xFF
         buf[end + 1] = crc >> 8
+        self._count()
+        return end + 2
+
+    def _count(self):
         self.seq = (self.seq + 1) & 0xFF
         self.frames = (self.frames + 1) & 0x1FFFFFFF  # as the parser's counters (COUNT_WRAP)
-        end += 2
-        if self.sign is not None and self.version == 2:
-            return end + self.sign(buf, end)
-        return end
 
     def clear(self, n):
         """Zero the payload area before packing a message field by field."""

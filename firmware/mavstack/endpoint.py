@@ -20,7 +20,7 @@ class Shutdown(Exception):
     """Raised out of poll() once a shutdown was acknowledged; main.py returns."""
 
 
-WAIT_MAX_MS = const(100)  # the longest poll() lets the loop sleep (the watchdog is fed between)
+WAIT_MAX_MS = const(250)  # the longest poll() lets the loop sleep (the watchdog is fed between)
 _FAR_MS = const(60000)  # no ticker asks to wait this long
 _ALL = const(-2)  # a frame wakes every ticker
 _NONE = const(-1)  # ... none

@@ -107,7 +107,8 @@ def encode(dialect, src, out):
 
 def run_kernels(src, out):
     """IN lines: crc HEX START END CRC | stx HEX POS END | copy DST SRC D S N | zero HEX START END
-    | scan SRC POS END BUF (out: the answer, then BUF after)."""
+    | scan SRC POS END BUF (out: the answer, then BUF after) | seal BUF INFO IDS MSGID (out:
+    the frame)."""
     crc16, find_stx, copy, zero = kernels.crc16, kernels.find_stx, kernels.copy, kernels.zero
     for line in src:
         w = line.split()
@@ -127,6 +128,9 @@ def run_kernels(src, out):
         elif op == "zero":
             zero(a, int(w[2]), int(w[3]))
             out.write(hexs(a) + "\n")
+        elif op == "seal":
+            n = kernels.seal_v2(a, int(w[2]), int(w[3]), int(w[4]))
+            out.write(hexs(a[:n]) + "\n")
         elif op == "scan":
             buf = bytearray(unhexlify(w[4]))
             r = kernels.scan(a, int(w[2]), int(w[3]), buf)

@@ -2,6 +2,7 @@
 
 The contract shared with bytes_viper:
   crc16(buf, start, end, crc)  X.25 (CRC-16/MCRF4XX) over buf[start:end], continuing crc
+  seal_v2(buf, info, ids, msgid)  a MAVLink 2 frame around the payload at buf[10:]
   find_stx(src, pos, end)      index of the first 0xFD/0xFE in src[pos:end], else end
   copy(dst, src, offsets, n)   dst[d:d+n] = src[s:s+n], offsets = d | s << 10 (d < 1024)
   zero(dst, start, end)        dst[start:end] = 0
@@ -63,6 +64,27 @@ def crc16(buf, start, end, crc):
         crc = (crc >> 8) ^ t[i] ^ t[i + 256] << 8
         start += 1
     return crc
+
+
+def seal_v2(buf, info, ids, msgid):
+    end = 10 + (info >> 16)  # trailing zeros are implied on the wire; the first byte stays
+    while end > 11 and buf[end - 1] == 0:
+        end -= 1
+    buf[0] = 0xFD
+    buf[1] = end - 10
+    buf[2] = ids >> 24
+    buf[3] = 0
+    buf[4] = ids & 0xFF
+    buf[5] = (ids >> 8) & 0xFF
+    buf[6] = (ids >> 16) & 0xFF
+    buf[7] = msgid & 0xFF
+    buf[8] = (msgid >> 8) & 0xFF
+    buf[9] = msgid >> 16
+    buf[end] = info & 0xFF  # CRC_EXTRA where the CRC's first byte goes: one pass covers it
+    crc = crc16(buf, 1, end + 1, 0xFFFF)
+    buf[end] = crc & 0xFF
+    buf[end + 1] = crc >> 8
+    return end + 2
 
 
 def find_stx(src, pos, end):

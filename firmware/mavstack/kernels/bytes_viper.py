@@ -18,6 +18,34 @@ def crc16(buf: ptr8, start: int, end: int, crc: int) -> int:
 
 
 @micropython.viper
+def seal_v2(buf: ptr8, info: int, ids: int, msgid: int) -> int:
+    end = 10 + (info >> 16)
+    while end > 11 and buf[end - 1] == 0:
+        end -= 1
+    buf[0] = 0xFD
+    buf[1] = end - 10
+    buf[2] = ids >> 24
+    buf[3] = 0
+    buf[4] = ids & 0xFF
+    buf[5] = (ids >> 8) & 0xFF
+    buf[6] = (ids >> 16) & 0xFF
+    buf[7] = msgid & 0xFF
+    buf[8] = (msgid >> 8) & 0xFF
+    buf[9] = (msgid >> 16) & 0xFF
+    buf[end] = info & 0xFF
+    crc = 0xFFFF
+    i = 1
+    while i <= end:
+        t = (buf[i] ^ crc) & 0xFF
+        t = (t ^ (t << 4)) & 0xFF
+        crc = ((crc >> 8) ^ (t << 8) ^ (t << 3) ^ (t >> 4)) & 0xFFFF
+        i += 1
+    buf[end] = crc & 0xFF
+    buf[end + 1] = crc >> 8
+    return end + 2
+
+
+@micropython.viper
 def find_stx(src: ptr8, pos: int, end: int) -> int:
     while pos < end:
         b = src[pos]

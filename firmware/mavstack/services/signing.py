@@ -9,7 +9,7 @@ accepted or sent, so no frame from before a restart is accepted after it. Verify
 signing and the clock allocate nothing.
 Reference (settings, the key, restarts, frames from the future): docs/services/signing.md.
 """
-from ..compat import const, ticks_add, ticks_diff
+from ..compat import const, ticks_add, ticks_diff, to_grid
 from ..kernels import copy
 from ..parser import HEADER_V2, SIGNATURE_LEN
 from ..storage import save_sealed, sealed
@@ -172,10 +172,10 @@ class Signing:
             self.ep.statustext(WARNING, self._warning)
             self._warning = None
         if not self.enabled:
-            return _CLOCK_MS
+            return to_grid(now, _CLOCK_MS)
         dt = ticks_diff(now, self._clk_at)
-        if dt < _CLOCK_MS:
-            return _CLOCK_MS - dt
+        if dt < _CLOCK_MS >> 1:  # (on the loop's grid: a second, give or take)
+            return to_grid(now, _CLOCK_MS)
         self._clk_at = now
         _advance(self._clk, dt)
         if ticks_diff(now, self._synced_at) >= _SYNC_MS:
@@ -185,7 +185,7 @@ class Signing:
             copy(self.ts, self._clk, 0, 6)
         if _later(self.ts, 0, self._due, 0):
             self._renew()
-        return _CLOCK_MS
+        return to_grid(now, _CLOCK_MS)
 
     def _sync(self):
         # The clock becomes the time of day, when that is known.

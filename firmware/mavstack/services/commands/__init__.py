@@ -10,7 +10,7 @@ a second run. A handler may set cmd.reply: that message follows the ACK. Built i
 MAV_CMD_REQUEST_MESSAGE (512) for every producer.
 Reference (the Command API, retries, held-back ACKs, the built-ins): docs/services/commands.md.
 """
-from ...compat import const, ticks_diff
+from ...compat import const, ticks_diff, to_grid
 from ...fields import u16
 from ...faults import COMMAND
 from ...kernels import crc16, copy
@@ -288,7 +288,7 @@ class Commands:
             else:
                 waiting |= q
                 i += 1
-        return 1 if self._held_n else 1000
+        return 1 if self._held_n else to_grid(now, 1000)
 
     def _send_held(self, e):
         held = self._held

@@ -13,7 +13,7 @@ Reference: docs/services/missions.md.
 """
 import gc
 
-from ...compat import const, ticks_diff, ticks_add
+from ...compat import const, ticks_diff, ticks_add, to_grid
 from ...fields import u16
 from .store import MissionStore, RECORD_SIZE
 from .transfer import CHANGE, EVERY, IDLE, PUSH, UPLOAD
@@ -161,7 +161,7 @@ class Missions:
         if t.state != IDLE:  # the retry, or the transfer gone stale
             stale = self.timeout_ms - ticks_diff(now, t.progress) + 1
             return ms if ms < stale else stale
-        return ticks_diff(self._current_due, now) if self.ep.services.get("streams") is None else _IDLE_MS
+        return ticks_diff(self._current_due, now) if self.ep.services.get("streams") is None else to_grid(now, _IDLE_MS)
 
     def _current(self, now):
         # On change; and once a second unless the streams service schedules it (it is

@@ -118,7 +118,7 @@ class Params(ParamStore, LinkEncodings, ParamTable):
         for li in range(len(self._pending)):  # a link's index is its place in ep.links
             if self._pending[li]:
                 self._pace(li, links[li], now)
-        return self._autosave(now) if self.dirty else self._wait()
+        return self._autosave(now) if self.dirty else self._wait(now)
 
     def _pace(self, li, link, now):
         sent = 0

@@ -8,7 +8,7 @@ in RAM storage (IN_PLACE), is packed and read where it lies; under a Guard inste
 
 Reference: docs/services/params.md
 """
-from ...compat import const, ticks_diff, heap_open, heap_close
+from ...compat import const, ticks_diff, heap_open, heap_close, to_grid
 
 FILE = "params"
 
@@ -177,21 +177,23 @@ class ParamStore:
         """Save when PARAM_AUTOSAVE_MS have passed since the last change -> ms to the
         next work (that save, or values still owed to a link)."""
         if not self.autosave_ms:
-            return self._wait()
+            return self._wait(now)
         ms = self.autosave_ms - ticks_diff(now, self._changed_at)
         if ms <= 0:
             self.save()
-        return self._wait() if ms <= 0 or ms > self._wait() else ms
+        wait = self._wait(now)
+        return wait if ms <= 0 or ms > wait else ms
 
-    def _wait(self):
-        """ms to the next work: 1 while values are owed to a link (paced), else idle."""
+    def _wait(self, now):
+        """ms to the next work: 1 while values are owed to a link (paced), else the
+        next second on the loop's grid."""
         pending = self._pending
         i = 0
         while i < len(pending):
             if pending[i]:
                 return 1
             i += 1
-        return _IDLE_MS
+        return to_grid(now, _IDLE_MS)
 
     def _take(self, values, saved):
         """A whole set of values (reload, defaults): sent and reported where changed."""

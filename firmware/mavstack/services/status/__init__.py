@@ -10,7 +10,7 @@ Reference: docs/services/status.md
 """
 from struct import pack_into
 
-from ...compat import const, ticks_diff, ticks_add
+from ...compat import const, ticks_diff, ticks_add, to_grid
 from ...endpoint import REBOOT, SHUTDOWN
 from ...kernels import copy
 from ...link import RANK_VITAL, RANK_OTHER, RANK_AUTO
@@ -320,9 +320,9 @@ class Status:
 
     def _period(self, now):
         # Once a second: HEARTBEAT, and SYS_STATUS unless the streams service schedules it.
-        self._next_period = ticks_add(self._next_period, _PERIOD_MS)
-        if ticks_diff(now, self._next_period) >= 0:  # fell behind: keep the rate, not the backlog
-            self._next_period = ticks_add(now, _PERIOD_MS)
+        # The next second on the loop's grid (a pass late or early keeps it; one that
+        # fell behind keeps the rate, not the backlog).
+        self._next_period = ticks_add(now, to_grid(now, _PERIOD_MS))
         self.health.measure()
         sys_status = "streams" not in self.ep.services
         for link in self.ep.links:

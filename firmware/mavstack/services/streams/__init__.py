@@ -10,7 +10,7 @@ link's budget. The service also makes ep.telemetry, the slots the application wr
 from struct import pack_into
 
 from ...link import RANK_OTHER, RANK_AUTO
-from ...compat import const, ticks_diff, ticks_add
+from ...compat import const, ticks_diff, ticks_add, to_grid
 from ...fields import u16
 from .scheduler import MAX_INTERVAL_US, LinkStreams, Stream, fit, measure, run
 from .telemetry import Telemetry
@@ -264,7 +264,7 @@ class Streams:
         if len(self.links) != len(self.ep.links):
             self._sync_links(now)
         if not -_RESCALE_MS <= ticks_diff(now, self._rescale_at) < 0:  # due, or the clock jumped
-            self._rescale_at = ticks_add(now, _RESCALE_MS)
+            self._rescale_at = ticks_add(now, to_grid(now, _RESCALE_MS))
             for ls in self.links:
                 measure(ls, now)
                 fit(ls, self.ep.producers)
