@@ -42,18 +42,20 @@ class Encoder:
             zero(self.buf, off + n, info)
         return off
 
-    # finish keeps few locals: docs/design.md.
+    # finish and its helpers keep few locals and a shallow stack: docs/design.md.
     def finish(self, msgid, sysid, compid):
         info = self.crc_len.get(msgid)
         if info is None:
             return 0
-        buf = self.buf
-        if self.version == 2:  # header, trimmed payload and CRC in one kernel call
-            end = seal_v2(buf, info, self.seq | sysid << 8 | compid << 16 | (0 if self.sign is None else IFLAG_SIGNED << 24), msgid)
-            self._count()
-            return end if self.sign is None else end + self.sign(buf, end)
+        if self.version == 2:
+            sysid = sysid << 8 | compid << 16
+            return self._seal_v2(info, sysid, msgid)
         if msgid > 255:
             return 0
+        return self._frame_v1(info, msgid, sysid, compid)
+
+    def _frame_v1(self, info, msgid, sysid, compid):
+        buf = self.buf
         end = HEADER_V1 + ((info >> 8) & 0xFF)
         buf[0] = STX_V1
         buf[1] = end - HEADER_V1
@@ -63,6 +65,21 @@ class Encoder:
         buf[5] = msgid
         # CRC_EXTRA goes where the CRC's first byte will, so one kernel call covers it.
         buf[end] = info & 0xFF
+        return self._seal_v1(end)
+
+    def _seal_v2(self, info, ids, msgid):
+        # Header, trimmed payload and CRC in one kernel call; the signature after.
+        ids |= self.seq
+        if self.sign is not None:
+            ids |= IFLAG_SIGNED << 24
+        end = seal_v2(self.buf, info, ids, msgid)
+        self._count()
+        if self.sign is None:
+            return end
+        return end + self.sign(self.buf, end)
+
+    def _seal_v1(self, end):
+        buf = self.buf
         crc = crc16(buf, 1, end + 1, 0xFFFF)
         buf[end] = crc & 0xFF
         buf[end + 1] = crc >> 8

@@ -67,11 +67,18 @@ def crc16(buf, start, end, crc):
 
 
 def seal_v2(buf, info, ids, msgid):
+    # (small frames: a heap frame past ~11 words, docs/design.md)
     end = 10 + (info >> 16)  # trailing zeros are implied on the wire; the first byte stays
     while end > 11 and buf[end - 1] == 0:
         end -= 1
     buf[0] = 0xFD
     buf[1] = end - 10
+    _ids_v2(buf, ids, msgid)
+    buf[end] = info & 0xFF  # CRC_EXTRA where the CRC's first byte goes: one pass covers it
+    return _crc_after(buf, end)
+
+
+def _ids_v2(buf, ids, msgid):
     buf[2] = ids >> 24
     buf[3] = 0
     buf[4] = ids & 0xFF
@@ -80,7 +87,9 @@ def seal_v2(buf, info, ids, msgid):
     buf[7] = msgid & 0xFF
     buf[8] = (msgid >> 8) & 0xFF
     buf[9] = msgid >> 16
-    buf[end] = info & 0xFF  # CRC_EXTRA where the CRC's first byte goes: one pass covers it
+
+
+def _crc_after(buf, end):
     crc = crc16(buf, 1, end + 1, 0xFFFF)
     buf[end] = crc & 0xFF
     buf[end + 1] = crc >> 8
