@@ -87,6 +87,12 @@ def landed_states(m, until, timeout=30.0):
     return seen, acks
 
 
+# The failsafes' hold in these tests: two seconds, so that the 1 Hz HEARTBEAT shows it
+# however the vehicle's passes fall on a loaded machine (with one second, a late pass
+# once let the hold go by between two HEARTBEATs).
+HOLD_S = 2.0
+
+
 def failsafe(m, what, hold, ret, silent=False, timeout=40.0):
     """From now until the vehicle is disarmed, everything it reports of a failsafe on
     `what`, in the order it came: its STATUSTEXTs and the modes its HEARTBEAT shows (repeats
@@ -300,8 +306,8 @@ def test_guided_mission_item_goes_there(vehicle):
 def test_gcs_loss_holds_then_returns(vehicle):
     v, m = fly_vehicle(vehicle, "--set", "gcs_timeout_ms=1000")
     assert gcs_tools.run(m, 180, 1, 0) is not None  # (a command: the vehicle hears us)
-    m.mav.param_set_send(1, 1, b"FS_HOLD_S", 1.0, 9)
-    assert recv(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == 1.0
+    m.mav.param_set_send(1, 1, b"FS_HOLD_S", HOLD_S, 9)
+    assert recv(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == HOLD_S
     takeoff(m)
     failsafe(m, "GCS", LOITER, RTL, silent=True)  # silence: no heartbeats from here on
 
@@ -327,8 +333,8 @@ def test_offboard_setpoints_flown_and_their_loss_holds_then_returns(vehicle):
     streamed SET_POSITION_TARGET_LOCAL_NED; when it stops: LOITER (PX4 AUTO.LOITER) at
     once, RTL (AUTO.RTL) FS_HOLD_S later."""
     v, m = fly_vehicle(vehicle)
-    m.mav.param_set_send(1, 1, b"FS_HOLD_S", 1.0, 9)
-    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == 1.0
+    m.mav.param_set_send(1, 1, b"FS_HOLD_S", HOLD_S, 9)
+    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == HOLD_S
     takeoff(m)
     position_only = 8 | 16 | 32 | 64 | 128 | 256 | 1024 | 2048
 
@@ -371,8 +377,8 @@ def test_manual_control_flies_alt_hold_and_its_loss_returns(vehicle):
     """ALT_HOLD: MANUAL_CONTROL's throttle climbs from the ground, the pitch stick flies
     forward, centred sticks hold; when it stops: LOITER, then RTL FS_HOLD_S later."""
     v, m = fly_vehicle(vehicle)
-    m.mav.param_set_send(1, 1, b"FS_HOLD_S", 1.0, 9)
-    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == 1.0
+    m.mav.param_set_send(1, 1, b"FS_HOLD_S", HOLD_S, 9)
+    assert gcs_tools.listen(m, "PARAM_VALUE", 5, lambda p: p.param_id == "FS_HOLD_S").param_value == HOLD_S
     assert gcs_tools.run(m, 400, 1) == ACCEPTED
     set_mode(m, 2)  # ALT_HOLD
 
