@@ -8,7 +8,8 @@ and warms up with one round of everything. Then harness.heap_requests runs the r
 twice, counting heap requests with micropython.mem_total() and then under
 micropython.heap_lock(): an upload of N items in the seed's MISSION_ITEM form (float
 degrees, converted to 1e7 integers on the way in), its download with MISSION_REQUEST
-(converted back), an upload as MISSION_ITEM_INT and its download with
+(converted back), an upload through a link that loses one item (Ground.lossy: the
+re-request, the probe, a station walked in order), an upload as MISSION_ITEM_INT and its download with
 MISSION_REQUEST_INT, a partial write and a partial read, a clear, and an upload the
 ground station abandons (re-requests, then the vehicle cancels). Every frame the
 vehicle sends is checked as it arrives; items must come back bit for bit.
@@ -19,7 +20,7 @@ altitudes down to -400 m. The mission store is seeded with a generation just bel
 2^30, so the commits of the round carry it past 2^30; a second store, seeded at
 0xC000FFFF, loads and commits under the same check.
 
-Prints `ok requested=0 uploads=5 items=2N+5 requests=2N+17 gen=XXXXXXXX gen_store=XXXXXXXX`
+Prints `ok requested=0 uploads=6 items=2N+5 requests=... gen=XXXXXXXX gen_store=XXXXXXXX`
 (the generations reached, hex), or what went wrong: `fail requested=B` followed by
 the bytes each stage asked the heap for (frame states of functions over 11 words
 included) and the rest of the `ok` line, when only that check failed.
@@ -64,7 +65,10 @@ LON_E7 = (-1224000000, 1512000000, 1799000000, -1800000000)
 LAT = (47.397742, -33.856784, 90.0, -89.99)
 LON = (-122.4, 151.2, 179.9, -180.0)
 Z = (-400.0, 10.0, -400.0, 35.5)
-STAGES = ("upload_float", "download_float", "upload_int", "download_int", "partial", "abandoned", "gen_store")
+STAGES = ("upload_float", "download_float", "upload_lossy", "upload_int", "download_int", "partial",
+          "abandoned", "gen_store")
+_LOST = 5  # the item the lossy upload loses on its first send
+_STACK = 64  # requests the lossy upload's station keeps
 GEN = 0x3FFFFFFA  # the mission store's seeded generation: the round's commits pass 2^30
 STORE_GEN = 0xC000FFFF
 
@@ -135,6 +139,10 @@ class Ground:
         self.request_partial = g.frame(_REQUEST_PARTIAL, 1, 5, 1, 1, 0)
         # What the vehicle sent.
         self.asked = bytearray(n)  # item k has been asked for (several fly at once)
+        self.times = bytearray(n)  # how often item k was asked for (up to 255)
+        self.stack = bytearray(2 * _STACK)  # the lossy station's requests, newest on top
+        self.top = -1  # -1: requests are not kept; else how many are
+        self.overflows = 0
         self.req_seq = -1
         self.reqs_seen = 0
         self.ack_type = -1
@@ -153,6 +161,8 @@ class Ground:
             self.req_seq = u16(p, 0)
             if self.req_seq < self.n:
                 self.asked[self.req_seq] = 1
+                self.times[self.req_seq] += self.times[self.req_seq] < 255
+                self.keep(self.req_seq)
             self.reqs_seen += 1
         elif msgid == _ACK:
             self.ack_type = p[2]
@@ -190,6 +200,48 @@ class Ground:
         """A new upload: nothing asked for yet."""
         for k in range(self.n):
             self.asked[k] = 0
+            self.times[k] = 0
+
+    def keep(self, seq):
+        """The lossy station keeps each request on its stack (a full one: the oldest go)."""
+        if self.top < 0:
+            return
+        if self.top == _STACK:
+            self.overflows += 1
+            return
+        self.stack[2 * self.top] = seq & 0xFF
+        self.stack[2 * self.top + 1] = seq >> 8
+        self.top += 1
+
+    def lossy(self):
+        """An upload through a link that loses item _LOST's first send, from a station
+        that answers the newest request first. The vehicle asks _LOST again once later
+        items are in, then, past it, probes the item after it (which came before it):
+        answered at once, alone, the station is taken for one that serves in order and
+        walked forward a request at a time. Its stale requests are answered last."""
+        acks = self.acks
+        self.forget()
+        self.top = 0
+        self.b.send(self.count)
+        self.b.run(2)
+        lost = steps = self.overflows = 0
+        while self.acks == acks and steps < 8 * self.n:
+            steps += 1
+            if self.top == 0:
+                self.b.run(50)  # nothing asked: the vehicle's timer
+                continue
+            self.top -= 1
+            k = self.stack[2 * self.top] | self.stack[2 * self.top + 1] << 8
+            if k == _LOST and not lost:
+                lost = 1
+                continue
+            self.send_item(self.item, self.xyz_int, k)
+        self.top = -1
+        if self.acks != acks + 1 or self.ack_type != 0 or self.overflows:
+            return 8000 + self.ack_type
+        if self.times[_LOST] < 2 or self.times[_LOST + 1] < 2:
+            return 8100 + self.times[_LOST + 1]  # no re-request, or no probe
+        return 0 if self.b.ep.services["missions"].transfer.strict else 8200  # found by it
 
     def upload(self, f, xyz):
         acks = self.acks
@@ -273,10 +325,12 @@ class Ground:
         if k == 1:
             return self.download(self.freq)
         if k == 2:
-            return self.upload(self.item, self.xyz_int)
+            return self.lossy()
         if k == 3:
+            return self.upload(self.item, self.xyz_int)
+        if k == 4:
             return self.download(self.req)
-        return self.partial() if k == 4 else self.abandoned()
+        return self.partial() if k == 5 else self.abandoned()
 
 
 class StoreCycle:

@@ -52,7 +52,8 @@ class Upload(Transfer):
         self.reach = 0  # the item after the furthest one received since the transfer began
         self.strict = False  # the peer serves requests only in order (see tick)
         self.probe = -1  # the item asked below the window after a slide (see _slide), -2: no more
-        self.probed = 0  # seq << 16 | held when it was asked
+        self.probe_seq = 0  # seq when it was asked ...
+        self.probe_held = 0  # ... and held (two ints: seq << 16 | held passes 2^30)
         self.srtt8 = -1  # smoothed round trip, ms * 8 (-1: no sample yet)
         self.var4 = 0  # its mean deviation, ms * 4
         self.rto = retry_ms
@@ -136,7 +137,7 @@ class Upload(Transfer):
             # one a peer that serves in order sent when asked does (it stands there). The
             # answer to the probe with nothing else in since: it serves in order.
             if not self.strict and seq == self.probe:
-                self.strict = self.probed == self.seq << 16 | self.held
+                self.strict = self.probe_seq == self.seq and self.probe_held == self.held
                 self.probe = -1 if self.strict else -2
             if self.strict:
                 self.cursor = seq + 1
@@ -209,7 +210,8 @@ class Upload(Transfer):
             # not after two expiries of the timer, which a ground station's own timeout
             # may not wait); if the window's items come first, it is not: no more probes.
             self.probe = self.cursor
-            self.probed = self.seq << 16 | self.held
+            self.probe_seq = self.seq
+            self.probe_held = self.held
             self._send(self.cursor)
 
     def _stage(self, p, seq, is_int):
