@@ -5,7 +5,10 @@ time while the ground station paces its frames in that time. Prints, per part, i
 calls, instructions per call and instructions per board second (inclusive: a part's
 figure holds the parts it calls; the counters' own cost is taken out).
 
-    .venv/bin/python bench/mcu_profile.py [idle|pilot|transfer] [seconds]
+    .venv/bin/python bench/mcu_profile.py [idle|pilot|transfer] [seconds] [detail]
+
+detail: also the handlers by message id, the parsers, the encoders and the missions
+service's store and transfer.
 
 A diagnostic for the note of a change to the loop, not a `make bench` key.
 """
@@ -26,11 +29,11 @@ clk = qemu._clock
 acc = {}
 def span(a, b):
     return (a - b) % 1000000000
-def wrap(obj, name, key, n=1):
+def wrapped(f, key, n=1):
     # Fixed arities: a *args wrapper would allocate on every call.
-    f = getattr(obj, name)
-    cell = [0, 0]
-    acc[key] = cell
+    cell = acc.get(key)
+    if cell is None:
+        cell = acc[key] = [0, 0]
     def w0():
         t = clk.read()
         r = f()
@@ -55,7 +58,15 @@ def wrap(obj, name, key, n=1):
         cell[1] += span(t, clk.read())
         cell[0] += 1
         return r
-    setattr(obj, name, (w0, w1, w2, w3)[n])
+    def w4(a, b, c, d):
+        t = clk.read()
+        r = f(a, b, c, d)
+        cell[1] += span(t, clk.read())
+        cell[0] += 1
+        return r
+    return (w0, w1, w2, w3, w4)[n]
+def wrap(obj, name, key, n=1):
+    setattr(obj, name, wrapped(getattr(obj, name), key, n))
 t = clk.read()
 for _ in range(200):
     span(t, clk.read())
@@ -94,6 +105,21 @@ for ls in (streams.links if streams is not None else ()):
             wrap(st, "send", "stream%d.%d" % (ls.link.index, st.msgid))
 if app is not None:
     wrap(app, "tick", "tick.app")
+if DETAIL:  # the handlers by message id, the parsers, the mission stores and transfer
+    for msgid in list(ep._handlers):
+        ep._handlers[msgid] = tuple(wrapped(h, "handler.%d" % msgid, 2) for h in ep._handlers[msgid])
+    for i, link in enumerate(ep.links):
+        wrap(link.rx, "feed", "link%d.rx.feed" % i, 2)
+        wrap(link, "begin", "link%d.begin" % i, 0)
+        wrap(link.tx, "finish", "link%d.tx.finish" % i, 3)
+    missions = ep.services.get("missions")
+    if missions is not None:
+        for st in missions.stores:
+            wrap(st, "read", "missions.store.read", 2)
+            wrap(st, "put", "missions.store.put", 2)
+        wrap(missions.transfer, "send_item", "missions.send_item", 4)
+        wrap(missions.transfer, "_take", "missions.upload._take", 3)
+        wrap(missions.transfer, "_got", "missions.upload._got", 2)
 busy[0] = busy[1] = 0
 total = loop(SPAN)
 print("profile total", total * 40, "sleep", busy[0] * 40, "passes", busy[1], "over", over * 40)
@@ -102,7 +128,7 @@ for k, c in acc.items():
 """
 
 
-def profile(kind="pilot", seconds=10):
+def profile(kind="pilot", seconds=10, detail=False):
     from mcu_rig import EmulatedBoard
 
     span_ms = int(seconds * 1000)
@@ -110,7 +136,7 @@ def profile(kind="pilot", seconds=10):
         os.environ["MAVLINK20"] = "1"
         from pymavlink import mavutil
 
-        b.start_script(BOARD.replace("SPAN", str(span_ms)))
+        b.start_script(BOARD.replace("SPAN", str(span_ms)).replace("DETAIL", str(detail)))
         gcs = mavutil.mavlink_connection(b.ptys[-1], baud=115200, source_system=255, source_component=190)
         w = bench_mcu_load.Workload(gcs, pilot=(kind == "pilot"))
         w.run_for(2000)
@@ -138,4 +164,5 @@ def profile(kind="pilot", seconds=10):
 
 
 if __name__ == "__main__":
-    profile(sys.argv[1] if len(sys.argv) > 1 else "pilot", float(sys.argv[2]) if len(sys.argv) > 2 else 10)
+    profile(sys.argv[1] if len(sys.argv) > 1 else "pilot", float(sys.argv[2]) if len(sys.argv) > 2 else 10,
+            "detail" in sys.argv[3:])
