@@ -122,12 +122,17 @@ class StandingVehicle:
         self._next = ticks_add(now, to_grid(now, _SENSOR_MS))  # with the streams' 4 Hz
         if self._repl_uart and _ctrl_c():
             raise self._interrupt
+        self._write(tm)
+        return ticks_diff(self._next, now)
+
+    def _write(self, tm):
+        # Apart from tick: its calls of many arguments make a frame too large for the C
+        # stack (docs/design.md), which every pass would pay for, not only the writes.
         z = self._zero
         tm.attitude(z, z, z, z, z, z)
         tm.global_position(self.LAT, self.LON, self.ALT_MM, 0, 0, 0, 0, 0)
         tm.gps_raw(3, self.LAT, self.LON, self.ALT_MM, 100, 100, 0, 0, 12)
         tm.vfr_hud(z, z, 0, 0, z, z)
-        return ticks_diff(self._next, now)
 
 
 _mem32 = None

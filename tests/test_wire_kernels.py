@@ -20,7 +20,7 @@ def kernel_cases(rnd, n):
         hx = data.hex() or "-"
         start = rnd.randint(0, size)
         end = rnd.randint(start, size)
-        op = rnd.randrange(5)
+        op = rnd.randrange(6)
         if op == 0:
             crc = rnd.choice([0xFFFF, 0, rnd.getrandbits(16)])
             lines.append("crc %s %d %d %d" % (hx, start, end, crc))
@@ -45,6 +45,14 @@ def kernel_cases(rnd, n):
             k = rnd.randint(0, min(len(dst) - d, len(src) - s))
             lines.append("copy %s %s %d %d %d" % (dst.hex(), src.hex() or "-", d, s, k))
             dst[d:d + k] = src[s:s + k]
+            expect.append(dst.hex())
+        elif op == 5:  # place: any destination offset (RAM storage's region)
+            dst = bytearray(rnd.randbytes(rnd.randint(1, 70000) if rnd.random() < 0.1 else rnd.randint(1, 300)))
+            src = rnd.randbytes(rnd.randint(1, 64))
+            k = rnd.randint(0, min(len(src), len(dst)))
+            d = rnd.randint(0, len(dst) - k)
+            lines.append("place %s %s %d %d" % (dst.hex(), src.hex(), d, k))
+            dst[d:d + k] = src[:k]
             expect.append(dst.hex())
         elif op == 4:  # a MAVLink 2 frame around a payload with trailing zeros, or none
             plen = rnd.randint(1, 255)

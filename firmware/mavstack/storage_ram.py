@@ -9,6 +9,7 @@ once a file exists (its handles are made with it); reserve() makes a file at sta
 Reference (the region's layout): docs/core.md.
 """
 from .compat import const
+from .kernels import copy, place
 
 _MAGIC = b"MSRS"
 _HEADER = const(16)
@@ -32,11 +33,13 @@ def _put32(b, o, v):
 
 def _copy_in(mem, d, src, n):
     """mem[d:d+n] = src[0:n] (slices would allocate a slice object on 1.25)."""
-    for i in range(n):
-        mem[d + i] = src[i]
+    place(mem, d, src, n)
 
 
 def _copy_out(mem, s, dst, n):
+    if s < 0x100000:  # (copy's source offset: below 2^20)
+        copy(dst, mem, s << 10, n)
+        return
     for i in range(n):
         dst[i] = mem[s + i]
 

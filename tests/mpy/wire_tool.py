@@ -106,7 +106,7 @@ def encode(dialect, src, out):
 
 
 def run_kernels(src, out):
-    """IN lines: crc HEX START END CRC | stx HEX POS END | copy DST SRC D S N | zero HEX START END
+    """IN lines: crc HEX START END CRC | stx HEX POS END | copy DST SRC D S N | place DST SRC D N | zero HEX START END
     | scan SRC POS END BUF (out: the answer, then BUF after) | seal BUF INFO IDS MSGID (out:
     the frame)."""
     crc16, find_stx, copy, zero = kernels.crc16, kernels.find_stx, kernels.copy, kernels.zero
@@ -124,6 +124,9 @@ def run_kernels(src, out):
             s = bytes(unhexlify(w[2])) if w[2] != "-" else b""
             d, o, n = int(w[3]), int(w[4]), int(w[5])
             copy(a, s, d | o << 10, n)
+            out.write(hexs(a) + "\n")
+        elif op == "place":
+            kernels.place(a, int(w[3]), bytes(unhexlify(w[2])), int(w[4]))
             out.write(hexs(a) + "\n")
         elif op == "zero":
             zero(a, int(w[2]), int(w[3]))

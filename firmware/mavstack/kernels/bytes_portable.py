@@ -116,6 +116,13 @@ def copy(dst, src, offsets, n):
         s += 1
 
 
+def place(dst, d, src, n):
+    s = 0
+    while s < n:
+        dst[d + s] = src[s]
+        s += 1
+
+
 def zero(dst, start, end):
     for i in range(start, end):
         dst[i] = 0

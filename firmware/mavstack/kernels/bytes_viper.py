@@ -66,6 +66,14 @@ def copy(dst: ptr8, src: ptr8, offsets: int, n: int):
 
 
 @micropython.viper
+def place(dst: ptr8, d: int, src: ptr8, n: int):
+    i = 0
+    while i < n:
+        dst[d + i] = src[i]
+        i += 1
+
+
+@micropython.viper
 def zero(dst: ptr8, start: int, end: int):
     while start < end:
         dst[start] = 0
