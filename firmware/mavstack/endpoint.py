@@ -214,13 +214,15 @@ class Endpoint:
             self.until(faults.report_at(now))
 
     def _ticks(self, now):
-        # A ticker due within _SLACK_MS runs now too: fewer passes wake the loop.
+        # A ticker due within _SLACK_MS runs now too: fewer passes wake the loop. (Every
+        # pass with work comes here: few operations an iteration.)
         self.wait_ms = WAIT_MAX_MS
         due = self._due
+        n = len(due)
         i = 0
-        while i < len(due):
+        while i < n:
             ms = ticks_diff(due[i], now)
-            if self._all or not _SLACK_MS < ms < _FAR_MS:  # (farther: the clock jumped)
+            if ms <= _SLACK_MS or ms >= _FAR_MS or self._all:  # (farther: the clock jumped)
                 self._tick(i, now)
             elif ms < self.wait_ms:
                 self.wait_ms = ms
@@ -229,7 +231,6 @@ class Endpoint:
 
     def _tick(self, i, now):
         # (small functions: docs/design.md)
-        due = self._due
         faults = self.faults
         ms = faults.tick(self.tickers[i], now)
         if faults.error is not None:
@@ -237,8 +238,9 @@ class Endpoint:
             ms = 1
         elif ms is None:
             ms = 1
-        due[i] = ticks_add(now, ms)
-        self.until(ms)
+        self._due[i] = ticks_add(now, ms)
+        if ms < self.wait_ms:  # (until(ms), without the call)
+            self.wait_ms = ms if ms > 0 else 0
 
     def until(self, ms):
         """The loop may sleep at most ms after this pass."""

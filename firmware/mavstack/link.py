@@ -38,6 +38,7 @@ _UNPACED = const(5000000)  # B/s: above this a link is not budgeted (and bps * m
 _SENDERS = const(8)
 _SHARE_RATE_DIV = const(16)  # a sender's allowance fills at bytes_per_s / 16 ...
 _SHARE_CAP_DIV = const(8)  # ... up to bytes_per_s / 8
+_SHARE_FILL_MS = const(2000)  # (so an empty one is full after this long)
 _SHARE_START_DIV = const(16)  # a slot starts with a second's worth
 _KEEP_MS = const(5000)  # a sender's slot is kept this long after its last GCS HEARTBEAT
 _UNKNOWN = const(-1)  # _slot: the sender not looked up yet
@@ -92,13 +93,13 @@ class Link:
         self._last = endpoint.now
         self._in_frame = False  # a received frame is being handled
         self._slot = _UNKNOWN  # its sender's place in _who
-        self._rank_now = RANK_REPLY
         self._who = [0] * _SENDERS  # (sysid << 8 | compid) + 1, 0: free
         # What each may still be answered at RANK_REPLY (1/1000 B), and when it last sent
         # a GCS HEARTBEAT (its slot kept _KEEP_MS from then).
         bps = self.bytes_per_s
         start = bps // _SHARE_START_DIV * 1000 if bps <= _UNPACED else 0  # (below 2^30)
         self._allow = [start] * _SENDERS
+        self._filled = [self._last] * _SENDERS  # when each allowance was last filled (_share)
         self._beat = [ticks_add(self._last, -_KEEP_MS)] * _SENDERS
 
     def poll(self):
@@ -144,14 +145,13 @@ class Link:
         n = self.tx.finish(msgid, ep.sysid, ep.compid if compid < 0 else compid)
         if n == 0:
             return False
-        if not self._afford(n):
+        if not self._pay(n):
             self._unsend()
             return False
         if self.transport.write(self.txbuf, n) != n:
-            self.tx_dropped = (self.tx_dropped + 1) & TX_WRAP
+            self._dropped(n)
             return False
         self.tx_bytes = (self.tx_bytes + n) & TX_WRAP  # a counter that stays a small int
-        self._spend(n)
         return True
 
     def send_payload(self, msgid, payload, n, compid=-1):
@@ -238,21 +238,32 @@ class Link:
             rank = self._auto(nbytes)
         return self.credit - nbytes * 1000 >= _FLOOR[rank]
 
-    def _afford(self, n):
-        bps = self.bytes_per_s
-        budgeted = bps > 0 and bps <= _UNPACED
-        if budgeted:
-            self._refill()
+    def _pay(self, n):
+        """Pay for the frame of n bytes at self.rank (RANK_AUTO: by its sender) -> paid;
+        False: the budget holds it back (counted). One call a send: refill, rank, the
+        bucket, the low ranks' count and the sender's allowance."""
         rank = self.rank
         if rank < 0:
             rank = self._auto(n)
-        self._rank_now = rank
-        if not budgeted:
-            return True
-        if self.credit - n * 1000 >= _FLOOR[rank]:
-            return True
-        self.tx_held = (self.tx_held + 1) & TX_WRAP
-        return False
+        bps = self.bytes_per_s
+        if 0 < bps <= _UNPACED:
+            self._refill()
+            if self.credit - n * 1000 < _FLOOR[rank]:
+                self.tx_held = (self.tx_held + 1) & TX_WRAP
+                return False
+            self.credit -= n * 1000
+        if rank == RANK_FILL or rank == RANK_OTHER:
+            self.tx_low = (self.tx_low + n) & TX_WRAP
+        if self._slot >= 0:
+            n = self._share(self._slot) - n * 1000
+            self._allow[self._slot] = n if n > 0 else 0
+        return True
+
+    def _dropped(self, n):
+        # The transport did not take the frame it was paid for: the bucket has it back.
+        self.tx_dropped = (self.tx_dropped + 1) & TX_WRAP
+        if 0 < self.bytes_per_s <= _UNPACED:
+            self.credit += n * 1000
 
     def _unsend(self):
         # The frame was sealed but does not go: its sequence number is given back, so
@@ -260,16 +271,6 @@ class Link:
         tx = self.tx
         tx.seq = (tx.seq - 1) & 0xFF
         tx.frames -= 1
-
-    def _spend(self, n):
-        bps = self.bytes_per_s
-        if bps > 0 and bps <= _UNPACED:
-            self.credit -= n * 1000
-        if self._rank_now == RANK_FILL or self._rank_now == RANK_OTHER:
-            self.tx_low = (self.tx_low + n) & TX_WRAP
-        if self._slot >= 0:
-            allow = self._allow[self._slot] - n * 1000
-            self._allow[self._slot] = allow if allow > 0 else 0
 
     def _refill(self):
         now = self.endpoint.now
@@ -284,7 +285,21 @@ class Link:
                 dt = cap // bps + 1  # (bps * dt stays below 2^30)
             credit = self.credit + bps * dt
             self.credit = credit if credit < cap else cap
-            _top_up(self._allow, bps * dt // _SHARE_RATE_DIV, bps // _SHARE_CAP_DIV * 1000)
+
+    def _share(self, i):
+        """Sender slot i's allowance, filled at bytes_per_s / 16 up to bytes_per_s / 8 for
+        the time since it was last looked at -> it. (Filled when looked at, not on every
+        refill: a send pays for its own sender's slot alone.)"""
+        allow = self._allow
+        dt = ticks_diff(self.endpoint.now, self._filled[i])
+        if dt > 0:
+            self._filled[i] = self.endpoint.now
+            bps = self.bytes_per_s
+            if 0 < bps <= _UNPACED:  # (a step below 2^30: bps / 16 * 2000 ms at most)
+                cap = bps // _SHARE_CAP_DIV * 1000
+                a = allow[i] + bps // _SHARE_RATE_DIV * dt if dt < _SHARE_FILL_MS else cap
+                allow[i] = a if a < cap else cap
+        return allow[i]
 
     def _auto(self, n):
         """The rank of a send of n bytes that did not say: by the sender of the frame
@@ -296,7 +311,7 @@ class Link:
             return RANK_REPLY if op.allows(self) else RANK_OTHER
         if self._slot == _UNKNOWN:
             self._slot = self._sender()
-        if self._slot < 0 or self._allow[self._slot] < n * 1000:
+        if self._slot < 0 or self._share(self._slot) < n * 1000:
             return RANK_OTHER
         return RANK_REPLY if self._kept(self._slot) else _RANK_NEW
 
@@ -326,11 +341,10 @@ class Link:
             if self._who[i] == key:
                 return i
             i += 1
-        allow = self._allow
         best = _NO_SLOT
         i = 0
         while i < _SENDERS and self._who[i] != 0:
-            if (best < 0 or allow[i] > allow[best]) and not self._kept(i):
+            if (best < 0 or self._share(i) > self._share(best)) and not self._kept(i):
                 best = i
             i += 1
         if i < _SENDERS:
@@ -343,11 +357,3 @@ class Link:
 def _cap(bps):
     cap = bps * _BURST_MS
     return cap if cap > _MIN_CAP else _MIN_CAP
-
-
-def _top_up(allow, step, cap):
-    i = 0
-    while i < _SENDERS:
-        a = allow[i] + step
-        allow[i] = a if a < cap else cap
-        i += 1
