@@ -3,11 +3,14 @@ in-memory link and a simulated clock, pymavlink encoding the ground stations' fr
 and decoding the vehicle's. Exact counts and timings are visible here; the same
 behaviour over UDP against the unix vehicle is in test_missions_e2e.py."""
 import math
+import os
 import struct
+import sys
 import types
 
 import pytest
 
+from conftest import ROOT
 from mission_gcs import Item, plan, same, waypoint
 from mission_rig import MissionBoard, Rig
 
@@ -588,13 +591,17 @@ def test_plan_ids_where_the_dialect_has_them(tmp_path):
     MISSION_CURRENT; the pymavlink release pinned here predates them. With a dialect
     that has them, the vehicle fills them in."""
     from mavstack.dialects import common
+    from mavstack.dialects.table import InfoTable
 
-    crc_len = dict(common.CRC_LEN)
+    sys.path.insert(0, os.path.join(ROOT, "host_tools"))
+    import mavgen
+
+    crc_len = dict(common.CRC_LEN.items())
     fmt = dict(common.FMT)
     for msgid, n, f in ((44, 9, "<HBBBI"), (47, 8, "<BBBBI"), (42, 18, "<HHBBIII")):
         crc_len[msgid] = crc_len[msgid] & 0xFFFF | n << 16
         fmt[msgid] = f
-    dialect = types.SimpleNamespace(CRC_LEN=crc_len, FMT=fmt)
+    dialect = types.SimpleNamespace(CRC_LEN=InfoTable(mavgen.info_block(crc_len)), FMT=fmt)
     r = Rig(tmp_path, dialect=dialect)
     seen = []
     r.b.watch = lambda msgid, p: seen.append((msgid, bytes(p[:20])))

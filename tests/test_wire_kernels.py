@@ -2,13 +2,19 @@
 and CPython) agree with each other and with an independent CRC (and, for the frame
 scanner, an independent model of it), and the whole parser gives the same frames and
 statistics with either set."""
+import os
 import random
+import sys
 
 import fastcrc
 import pytest
 
-from mavstack.kernels.bytes_portable import FIELDS, IDS, SLOTS
+from conftest import ROOT
+from mavstack.kernels.bytes_portable import BUF_LEN, FIELDS, SLOTS
 from wire_oracle import OURS, RUNTIME_IDS, RUNTIMES, corrupt, random_frames, parse_files, run_tool, x25
+
+sys.path.insert(0, os.path.join(ROOT, "host_tools"))
+import mavgen  # noqa: E402  (the dialects' block, as the generator writes it)
 
 
 def kernel_cases(rnd, n):
@@ -20,7 +26,7 @@ def kernel_cases(rnd, n):
         hx = data.hex() or "-"
         start = rnd.randint(0, size)
         end = rnd.randint(start, size)
-        op = rnd.randrange(6)
+        op = rnd.randrange(7)
         if op == 0:
             crc = rnd.choice([0xFFFF, 0, rnd.getrandbits(16)])
             lines.append("crc %s %d %d %d" % (hx, start, end, crc))
@@ -71,6 +77,13 @@ def kernel_cases(rnd, n):
             head = bytes([kept, flags, 0, seq, sysid, compid, msgid & 0xFF, msgid >> 8 & 0xFF, msgid >> 16])
             crc = fastcrc.crc16.mcrf4xx(head + payload[:kept] + bytes([extra]), 0xFFFF)
             expect.append((b"\xfd" + head + payload[:kept] + bytes([crc & 0xFF, crc >> 8])).hex())
+        elif op == 6:  # id_info: a dialect's block (dialects/table.py), ids it has and not
+            infos = {i: rnd.getrandbits(16) | rnd.randint(1, 255) << 16
+                     for i in rnd.sample(range(1 << 24) if rnd.random() < 0.5 else range(600), rnd.randint(0, 300))}
+            asked = rnd.choice([-1, 0, 255, 256, (1 << 24) - 1, 1 << 24, rnd.randrange(1 << 24),
+                                rnd.choice(sorted(infos) or [7])])
+            lines.append("info %s %d" % (mavgen.info_block(infos).hex(), asked))
+            expect.append(str(infos.get(asked, 0)))
         else:
             if not size:
                 data, hx, start, end = b"\x01", "01", 0, 1
@@ -117,9 +130,12 @@ def test_parser_same_output_with_both_kernel_sets(tmp_path):
 # --- the frame scanner ------------------------------------------------------------------
 
 
+INFOS = OURS["common"].CRC_LEN  # the dialect wire_tool's scan reads
+
+
 def scan_model(src, pos, end, buf):
-    """kernels.scan as its contract (bytes_portable.py) says, written plainly -> (answer,
-    buf after)."""
+    """kernels.scan as its contract (bytes_portable.py) says, written plainly, with the
+    common dialect -> (answer, buf after)."""
     buf = bytearray(buf)
     fast = end >= 0
     end = abs(end)
@@ -138,7 +154,8 @@ def scan_model(src, pos, end, buf):
         if src[pos + 2] > 1 or src[pos + 8] or src[pos + 9]:
             return more
         msgid, signed = src[pos + 7], src[pos + 2]
-    extra, least, full = buf[IDS + 3 * msgid:IDS + 3 * msgid + 3]
+    info = INFOS.get(msgid, 0)
+    extra, least, full = info & 0xFF, info >> 8 & 0xFF, info >> 16
     if full == 0 or plen > full or (plen < least if v1 else plen == 0):
         return more
     n = hdr + plen + 2 + 13 * signed
@@ -161,19 +178,10 @@ def scan_model(src, pos, end, buf):
     return e << 2 | (2 if v1 else 0) | changed, buf
 
 
-def id_table(crc_len):
-    buf = bytearray(IDS + 3 * 256)
-    for msgid, info in crc_len.items():
-        if msgid < 256:
-            buf[IDS + 3 * msgid:IDS + 3 * msgid + 3] = bytes([info & 0xFF, (info >> 8) & 0xFF, info >> 16])
-    return buf
-
-
 def scan_cases(rnd, n):
     """Frames (MAVLink 1, 2, signed, ids over 255, damaged, cut short) after garbage or
     not, scanned fast or careful from their start or earlier, with senders known or not,
     in sequence or not -> (lines, expected answers and buffers)."""
-    table = id_table(OURS["common"].CRC_LEN)
     frames = random_frames(rnd, n, v1_share=0.4, signed_share=0.15)
     lines, expect = [], []
     for f in frames:
@@ -185,7 +193,7 @@ def scan_cases(rnd, n):
             f = f[:rnd.randrange(1, len(f))]  # cut short
         lead = bytes(rnd.randrange(0xFD) for _ in range(rnd.choice([0, 0, 0, 3])))
         src = lead + f + bytes(rnd.randrange(256) for _ in range(rnd.randint(0, 20)))
-        buf = bytearray(table)
+        buf = bytearray(BUF_LEN)
         buf[0:280] = rnd.randbytes(280)
         hdr = 6 if f[0] == 0xFE else 10
         if len(f) >= hdr and rnd.random() < 0.8:  # the sender in a slot

@@ -7,7 +7,7 @@ Usage, allocation-free per frame:
 Reference: docs/core.md.
 """
 from .compat import const
-from .kernels import crc16, copy, seal_v2, zero
+from .kernels import crc16, copy, id_info, seal_v2, zero
 from .parser import STX_V1, HEADER_V1, HEADER_V2, FRAME_MAX, IFLAG_SIGNED
 
 
@@ -18,7 +18,8 @@ class Encoder:
     sign = None
 
     def __init__(self, crc_len, version=2):
-        self.crc_len = crc_len
+        self.crc_len = crc_len  # the dialect's CRC_LEN; its block, read per frame:
+        self.infos = crc_len.block
         self.version = version
         self.buf = bytearray(FRAME_MAX)
         self.seq = 0
@@ -36,16 +37,16 @@ class Encoder:
         """
         off = HEADER_V2 if self.version == 2 else HEADER_V1
         copy(self.buf, payload, off, n)
-        info = self.crc_len.get(msgid)
-        if info is not None and n < info >> 16:
+        info = id_info(self.infos, msgid)
+        if info and n < info >> 16:
             info = off + (info >> 16)  # the payload's end
             zero(self.buf, off + n, info)
         return off
 
     # finish and its helpers keep few locals and a shallow stack: docs/design.md.
     def finish(self, msgid, sysid, compid):
-        info = self.crc_len.get(msgid)
-        if info is None:
+        info = id_info(self.infos, msgid)
+        if not info:
             return 0
         if self.version == 2:
             sysid = sysid << 8 | compid << 16

@@ -8,7 +8,7 @@ bytewise state machine, with the same results either way.
 Reference (statistics, late frames, the verify hook): docs/core.md.
 """
 from .compat import const
-from .kernels import crc16, find_stx, copy, zero, scan, SLOTS, FIELDS, IDS
+from .kernels import crc16, find_stx, copy, id_info, zero, scan, SLOTS, FIELDS, BUF_LEN
 
 STX_V1 = const(0xFE)
 STX_V2 = const(0xFD)
@@ -35,18 +35,11 @@ class Parser:
         # frame still as on the wire (CRC in place); False drops it undelivered. Looked
         # up on every frame: an instance attribute is found first.
         self.verify = None
-        self.crc_len = crc_len  # dialect.CRC_LEN: id -> crc_extra | len1 << 8 | len2 << 16
+        self.infos = crc_len.block  # dialect.CRC_LEN's block, read by kernels.id_info
         self.on_frame = on_frame  # called as on_frame(msgid, payload)
         # The frame at [0:FRAME_MAX), then what kernels.scan reads and keeps: the sender
-        # slots for sequence numbers, and the dialect's ids < 256 as a table.
-        self.buf = bytearray(IDS + 3 * 256)
-        buf = self.buf
-        for msgid in crc_len:
-            if msgid < 256:
-                info = crc_len[msgid]
-                buf[IDS + 3 * msgid] = info & 0xFF
-                buf[IDS + 3 * msgid + 1] = (info >> 8) & 0xFF
-                buf[IDS + 3 * msgid + 2] = info >> 16
+        # slots for sequence numbers, the fields it left set.
+        self.buf = bytearray(BUF_LEN)
         mv = memoryview(self.buf)
         self._payload_v1 = mv[HEADER_V1 : HEADER_V1 + 255]
         self._payload_v2 = mv[HEADER_V2 : HEADER_V2 + 255]
@@ -97,31 +90,30 @@ class Parser:
                 pos = self._step(data, pos, n)
                 continue
             # Idle: whole frames in data, one kernel call each (see kernels.scan). Few
-            # locals: docs/design.md.
+            # locals (no local for self.buf): docs/design.md.
             while pos < n:
-                r = scan(data, pos, n if self.verify is None else -n, self.buf)
+                r = scan(data, pos, n if self.verify is None else -n, self.buf, self.infos)
                 if r < 0:
                     break
                 pos = r >> 2
-                buf = self.buf
                 if r & 2:
                     if r & 1:
                         self.version = 1
                         self.signed = False
                         self.payload = self._payload_v1
-                    self.seq = buf[2]
-                    self.sysid = buf[3]
-                    self.compid = buf[4]
-                    r = buf[5]
+                    self.seq = self.buf[2]
+                    self.sysid = self.buf[3]
+                    self.compid = self.buf[4]
+                    r = self.buf[5]
                 else:
                     if r & 1:
                         self.version = 2
                         self.signed = False
                         self.payload = self._payload_v2
-                    self.seq = buf[4]
-                    self.sysid = buf[5]
-                    self.compid = buf[6]
-                    r = buf[7]
+                    self.seq = self.buf[4]
+                    self.sysid = self.buf[5]
+                    self.compid = self.buf[6]
+                    r = self.buf[7]
                 self.msgid = r
                 self.frames = (self.frames + 1) & COUNT_WRAP
                 self.on_frame(r, self.payload)
@@ -187,8 +179,8 @@ class Parser:
                 self.bad_frames = (self.bad_frames + 1) & COUNT_WRAP
                 return False
             msgid = buf[7] | buf[8] << 8 | buf[9] << 16
-            info = self.crc_len.get(msgid)
-            if info is None:
+            info = id_info(self.infos, msgid)
+            if not info:
                 self.unknown_ids = (self.unknown_ids + 1) & COUNT_WRAP
                 return False
             if plen == 0 or plen > (info >> 16):
@@ -199,8 +191,8 @@ class Parser:
                 want += SIGNATURE_LEN
         else:
             msgid = buf[5]
-            info = self.crc_len.get(msgid)
-            if info is None:
+            info = id_info(self.infos, msgid)
+            if not info:
                 self.unknown_ids = (self.unknown_ids + 1) & COUNT_WRAP
                 return False
             # At least the base fields; senders built from a newer definition (the
@@ -253,7 +245,7 @@ class Parser:
             start = HEADER_V1
         if self.verify is not None and not self.verify(buf, plen, self.signed):
             return
-        full = self.crc_len[self.msgid] >> 16
+        full = id_info(self.infos, self.msgid) >> 16
         if plen < full:
             zero(buf, start + plen, start + full)
         self.frames = (self.frames + 1) & COUNT_WRAP
@@ -276,7 +268,7 @@ class Parser:
         # The sender slots in buf (kernels.scan counts a known sender with no gap itself).
         buf = self.buf
         i = SLOTS
-        while i < IDS:
+        while i < BUF_LEN:
             if buf[i] and buf[i + 1] == self.sysid and buf[i + 2] == self.compid:
                 self._gap(i)
                 return

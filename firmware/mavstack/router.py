@@ -5,7 +5,7 @@ every other link). main.py adds it to a board with more than one link.
 Reference (the rules, the table, ranks, signing, private links): docs/routing.md.
 """
 from .compat import const, ticks_diff
-from .kernels import crc16, copy
+from .kernels import crc16, copy, id_info
 from .parser import STX_V2, HEADER_V1, HEADER_V2, SIGNATURE_LEN, FRAME_MAX
 
 _MSG_SYSTEM_TIME = const(2)
@@ -171,7 +171,7 @@ class Router:
 
     def _forward(self, rx, mask):
         """The frame as it came, rebuilt in self.frame, written to every link in mask."""
-        n = self._copy(rx.buf, rx.crc_len[rx.msgid] & 0xFF)
+        n = self._copy(rx.buf, id_info(rx.infos, rx.msgid) & 0xFF)
         if rx.signed:
             copy(self.frame, rx.signature, n, SIGNATURE_LEN)
             n += SIGNATURE_LEN

@@ -108,7 +108,7 @@ def encode(dialect, src, out):
 def run_kernels(src, out):
     """IN lines: crc HEX START END CRC | stx HEX POS END | copy DST SRC D S N | place DST SRC D N | zero HEX START END
     | scan SRC POS END BUF (out: the answer, then BUF after) | seal BUF INFO IDS MSGID (out:
-    the frame)."""
+    the frame) | info BLOCK MSGID (out: id_info's answer)."""
     crc16, find_stx, copy, zero = kernels.crc16, kernels.find_stx, kernels.copy, kernels.zero
     for line in src:
         w = line.split()
@@ -134,9 +134,11 @@ def run_kernels(src, out):
         elif op == "seal":
             n = kernels.seal_v2(a, int(w[2]), int(w[3]), int(w[4]))
             out.write(hexs(a[:n]) + "\n")
+        elif op == "info":
+            out.write("%d\n" % kernels.id_info(a, int(w[2])))
         elif op == "scan":
             buf = bytearray(unhexlify(w[4]))
-            r = kernels.scan(a, int(w[2]), int(w[3]), buf)
+            r = kernels.scan(a, int(w[2]), int(w[3]), buf, load_dialect("common").CRC_LEN.block)
             out.write("%d %s\n" % (r, hexs(buf)))
 
 

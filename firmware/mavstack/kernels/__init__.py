@@ -8,13 +8,13 @@ from ..compat import MICROPYTHON, getenv
 IMPL = "portable"
 if MICROPYTHON and not getenv("MAVSTACK_PORTABLE"):
     try:
-        from .bytes_viper import crc16, seal_v2, find_stx, copy, place, zero, scan, SLOTS, FIELDS, IDS
+        from .bytes_viper import crc16, seal_v2, find_stx, copy, place, id_info, zero, scan, SLOTS, FIELDS, BUF_LEN
 
         IMPL = "viper"
     except Exception:  # a port built without the native emitter
         pass
 if IMPL == "portable":
-    from .bytes_portable import crc16, seal_v2, find_stx, copy, place, zero, scan, SLOTS, FIELDS, IDS
+    from .bytes_portable import crc16, seal_v2, find_stx, copy, place, id_info, zero, scan, SLOTS, FIELDS, BUF_LEN
 
 
 def crc_accumulate(crc, byte):

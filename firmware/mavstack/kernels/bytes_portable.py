@@ -5,8 +5,11 @@ The contract shared with bytes_viper:
   seal_v2(buf, info, ids, msgid)  a MAVLink 2 frame around the payload at buf[10:]
   find_stx(src, pos, end)      index of the first 0xFD/0xFE in src[pos:end], else end
   copy(dst, src, offsets, n)   dst[d:d+n] = src[s:s+n], offsets = d | s << 10 (d < 1024)
+  place(dst, d, src, n)        dst[d:d+n] = src[0:n], at any offset
+  id_info(t, msgid)            a dialect's crc_extra | len1 << 8 | len2 << 16 for msgid from
+                               its block t (dialects/table.py: InfoTable), 0 if it has none
   zero(dst, start, end)        dst[start:end] = 0
-  scan(src, pos, end, buf)     one whole frame at src[pos:end] into a parser's buffer
+  scan(src, pos, end, buf, infos)  one whole frame at src[pos:end] into a parser's buffer
 Loops over indices rather than slices so that nothing is allocated on MicroPython.
 Reference (scan's buffer layout and answers): docs/core.md.
 """
@@ -14,7 +17,7 @@ from ..compat import const
 
 SLOTS = const(280)
 FIELDS = const(312)
-IDS = const(316)
+BUF_LEN = const(316)
 
 
 # The CRC a byte at a time by table: crc16 of each byte value from 0, low bytes then
@@ -123,13 +126,43 @@ def place(dst, d, src, n):
         s += 1
 
 
+def id_info(t, msgid):
+    if 0 <= msgid <= 255:
+        msgid *= 3
+    else:
+        msgid = _id_high(t, msgid)
+        if msgid < 0:
+            return 0
+    return t[msgid] | t[msgid + 1] << 8 | t[msgid + 2] << 16
+
+
+def _id_high(t, msgid):
+    # (apart from id_info, to keep both frames small: docs/design.md)
+    lo = 0
+    hi = -1 if msgid < 0 else t[768] | t[769] << 8
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        j = 770 + mid * 6
+        m = t[j] | t[j + 1] << 8 | t[j + 2] << 16
+        if m == msgid:
+            return j + 3
+        if m < msgid:
+            lo = mid + 1
+        else:
+            hi = mid
+    return -1
+
+
 def zero(dst, start, end):
     for i in range(start, end):
         dst[i] = 0
 
 
-def scan(src, pos, end, buf):
-    # Small steps, each with a small frame (docs/design.md).
+def scan(src, pos, end, buf, infos):
+    # Small steps, each with a small frame (docs/design.md): the helpers read the
+    # dialect's block from _INFOS.
+    global _INFOS
+    _INFOS = infos
     if end < 0:
         n = _check(src, pos, -end, buf)
         if n > 0:
@@ -149,6 +182,9 @@ def _fields(buf):
         return 2 if v == 1 else 0
     buf[FIELDS] = v
     return 3 if v == 1 else 1
+
+
+_INFOS = b""  # the block of the dialect scan reads (kernels.id_info), set by scan
 
 
 def _check(src, pos, end, buf):
@@ -172,8 +208,8 @@ def _frame_len(src, pos, end, buf):
         if end - pos < 6:
             return 0
         plen = src[pos + 1]
-        t = IDS + src[pos + 5] * 3
-        if buf[t + 2] == 0 or plen < buf[t + 1] or plen > buf[t + 2]:
+        t = src[pos + 5] * 3
+        if _INFOS[t + 2] == 0 or plen < _INFOS[t + 1] or plen > _INFOS[t + 2]:
             return 0
         return plen + 8
     if end - pos < 10:
@@ -181,8 +217,8 @@ def _frame_len(src, pos, end, buf):
     plen = src[pos + 1]
     if src[pos + 2] > 1 or src[pos + 8] or src[pos + 9]:
         return 0
-    t = IDS + src[pos + 7] * 3
-    if buf[t + 2] == 0 or plen == 0 or plen > buf[t + 2]:
+    t = src[pos + 7] * 3
+    if _INFOS[t + 2] == 0 or plen == 0 or plen > _INFOS[t + 2]:
         return 0
     return plen + (25 if src[pos + 2] else 12)
 
@@ -190,10 +226,10 @@ def _frame_len(src, pos, end, buf):
 def _crc_ok(buf):
     if buf[0] == 0xFE:
         e = 6 + buf[1]
-        t = buf[IDS + 3 * buf[5]]  # crc_extra, by msgid
+        t = _INFOS[3 * buf[5]]  # crc_extra, by msgid
     else:
         e = 10 + buf[1]
-        t = buf[IDS + 3 * buf[7]]
+        t = _INFOS[3 * buf[7]]
     crc = crc16(buf, 1, e, 0xFFFF)
     t = (t ^ crc) & 0xFF
     crc = (crc >> 8) ^ _TABLE[t] ^ _TABLE[t + 256] << 8
@@ -204,15 +240,15 @@ def _settle(buf):
     """Zero-extend the payload; count the sender's sequence number if it has a slot and
     no gap -> True, else False (Python counts it)."""
     h = 6 if buf[0] == 0xFE else 10
-    i = buf[IDS + 3 * buf[5 if h == 6 else 7] + 2]  # the full length
+    i = _INFOS[3 * buf[5 if h == 6 else 7] + 2]  # the full length
     zero(buf, h + buf[1], h + i)
     h = 2 if h == 6 else 4  # now the offset of seq, then sysid, compid
     i = SLOTS
-    while i < IDS:
+    while i < BUF_LEN:
         if buf[i] and buf[i + 1] == buf[h + 1] and buf[i + 2] == buf[h + 2]:
             break
         i += 4
-    if i == IDS or (buf[h] - buf[i + 3] - 1) & 0xFF:
+    if i == BUF_LEN or (buf[h] - buf[i + 3] - 1) & 0xFF:
         return False
     buf[i + 3] = buf[h]
     return True

@@ -74,6 +74,30 @@ def place(dst: ptr8, d: int, src: ptr8, n: int):
 
 
 @micropython.viper
+def id_info(t: ptr8, msgid: int) -> int:
+    i = -1
+    if msgid >= 0 and msgid <= 255:
+        i = msgid * 3
+    elif msgid > 255:
+        lo = 0
+        hi = t[768] | t[769] << 8
+        while lo < hi:
+            mid = (lo + hi) >> 1
+            j = 770 + mid * 6
+            m = t[j] | t[j + 1] << 8 | t[j + 2] << 16
+            if m == msgid:
+                i = j + 3
+                break
+            if m < msgid:
+                lo = mid + 1
+            else:
+                hi = mid
+    if i < 0:
+        return 0
+    return t[i] | t[i + 1] << 8 | t[i + 2] << 16
+
+
+@micropython.viper
 def zero(dst: ptr8, start: int, end: int):
     while start < end:
         dst[start] = 0
@@ -83,7 +107,7 @@ def zero(dst: ptr8, start: int, end: int):
 # scan's layout of the parser's buffer after the frame; docs/core.md has the contract.
 SLOTS = const(280)
 FIELDS = const(312)
-IDS = const(316)
+BUF_LEN = const(316)
 _CRC = bytearray(512)  # the CRC's table, 256 16-bit entries: one lookup a byte
 
 
@@ -100,7 +124,7 @@ _crc_table(_CRC)
 
 
 @micropython.viper
-def scan(src: ptr8, pos: int, end: int, buf: ptr8) -> int:
+def scan(src: ptr8, pos: int, end: int, buf: ptr8, infos: ptr8) -> int:
     fast = 1
     if end < 0:
         fast = 0
@@ -118,9 +142,9 @@ def scan(src: ptr8, pos: int, end: int, buf: ptr8) -> int:
         if end - pos < 6:
             return more
         plen = src[pos + 1]
-        t = IDS + src[pos + 5] * 3
-        full = buf[t + 2]
-        if full == 0 or plen < buf[t + 1] or plen > full:
+        t = src[pos + 5] * 3
+        full = infos[t + 2]
+        if full == 0 or plen < infos[t + 1] or plen > full:
             return more
         hdr = 6
         n = plen + 8
@@ -132,8 +156,8 @@ def scan(src: ptr8, pos: int, end: int, buf: ptr8) -> int:
         signed = src[pos + 2]
         if signed > 1 or src[pos + 8] or src[pos + 9]:
             return more
-        t = IDS + src[pos + 7] * 3
-        full = buf[t + 2]
+        t = src[pos + 7] * 3
+        full = infos[t + 2]
         if full == 0 or plen == 0 or plen > full:
             return more
         hdr = 10
@@ -156,7 +180,7 @@ def scan(src: ptr8, pos: int, end: int, buf: ptr8) -> int:
         dst[i] = b
         crc = (crc >> 8) ^ tbl[(crc ^ b) & 0xFF]
         i += 1
-    crc = (crc >> 8) ^ tbl[(crc ^ buf[t]) & 0xFF]
+    crc = (crc >> 8) ^ tbl[(crc ^ infos[t]) & 0xFF]
     if crc != (src[e] | src[e + 1] << 8):
         return more
     e = pos + n
@@ -173,11 +197,11 @@ def scan(src: ptr8, pos: int, end: int, buf: ptr8) -> int:
     # A sender already seen, with no sequence gap: count it here; else Python does.
     hdr = 2 if hdr == 6 else 4  # now the offset of seq, then sysid, compid
     i = SLOTS
-    while i < IDS:
+    while i < BUF_LEN:
         if buf[i] and buf[i + 1] == buf[hdr + 1] and buf[i + 2] == buf[hdr + 2]:
             break
         i += 4
-    if i == IDS or ((buf[hdr] - buf[i + 3] - 1) & 0xFF):
+    if i == BUF_LEN or ((buf[hdr] - buf[i + 3] - 1) & 0xFF):
         return -1 - (e << 2 | 2)
     buf[i + 3] = buf[hdr]
     # Bit 0: the parser's version, payload and signed fields need setting (FIELDS says

@@ -1,5 +1,24 @@
-"""Routing tables for mavgen's runtime modules: where each message's target_system and
-target_component sit in its payload (TARGETS, TARGETS_HIGH), as bytes constants."""
+"""Per-id tables for mavgen's runtime modules, as bytes constants (flash, when frozen):
+the block behind CRC_LEN (info_block), and for routing, where each message's
+target_system and target_component sit in its payload (TARGETS, TARGETS_HIGH)."""
+
+
+def info_block(infos):
+    """{id: crc_extra | len1 << 8 | len2 << 16} -> the block an InfoTable reads
+    (mavstack/dialects/table.py): 3 bytes (crc_extra, len1, len2) for each id below 256,
+    zeros where there is no such message; the number of ids from 256 up (2 bytes); then
+    6 bytes for each of those, ascending: the id (3 bytes, little end first), its 3 bytes."""
+    block = bytearray(770)
+    high = sorted(i for i in infos if i > 255)
+    block[768:770] = len(high).to_bytes(2, "little")
+    for msgid, info in infos.items():
+        if not 0 <= msgid < 1 << 24 or not info >> 16:
+            raise ValueError("message %d: no length, or an id past 24 bits" % msgid)
+        if msgid < 256:
+            block[3 * msgid : 3 * msgid + 3] = info.to_bytes(3, "little")
+    for msgid in high:
+        block += msgid.to_bytes(3, "little") + infos[msgid].to_bytes(3, "little")
+    return bytes(block)
 
 
 def _offsets(m):
