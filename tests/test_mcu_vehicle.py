@@ -21,13 +21,16 @@ from test_mcu import BOARDS, _gate
 MAV_RESULT_ACCEPTED = 0
 UINT32_BIG = 3000000000  # past 2^31 even: a heap int on the board if it ever became one
 LONS = (-1224000000, 1512000000, 1799000000)  # -122.4, 151.2 and 179.9 degrees
+# The heap these tests run the vehicle in: the profiles' RAM_BUDGET, the smallest heap
+# the whole vehicle needs (bench_mcu.py finds it), so that every change is tried there.
+HEAP_KB = 60
 
 
 @pytest.fixture(params=BOARDS)
 def vehicle(request):
     _gate()
     # bench/bench_mcu.py bisects the heap size with MCU_VEHICLE_HEAP_KB.
-    heap_kb = int(os.environ.get("MCU_VEHICLE_HEAP_KB", "0")) or EmulatedBoard.DEFAULT_HEAP_KB
+    heap_kb = int(os.environ.get("MCU_VEHICLE_HEAP_KB", "0")) or HEAP_KB
     with EmulatedBoard(request.param, heap_kb) as b:
         yield b
 

@@ -12,13 +12,18 @@ import gc
 
 def compose(ep, names):
     """Attach the services `names` (a board's SERVICES) in order -> None, or the one line
-    that says why the board cannot be built (the services before it are attached)."""
+    that says why the board cannot be built (then none is attached)."""
+    # All the modules first, then the services: what the modules hold stays for good, and
+    # a vehicle rebuilt in place (a reboot) then finds the old services' heap in one piece.
+    modules = []
     for i in range(len(names)):
         gc.collect()  # keep the heap unfragmented while each service loads
-        module = __import__("mavstack.services." + names[i], None, None, ("create",))
-        why = misplaced(module, names, i)
+        modules.append(__import__("mavstack.services." + names[i], None, None, ("create",)))
+        why = misplaced(modules[i], names, i)
         if why:
             return why
+    for module in modules:
+        gc.collect()
         module.create(ep)
     return None
 
