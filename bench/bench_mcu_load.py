@@ -8,7 +8,9 @@ qemu_m0.py): SYS_STATUS.load under three workloads, the instructions of the loop
         idle: the default streams at a 57600-baud budget, a ground station's 1 Hz HEARTBEAT;
         pilot: idle plus MANUAL_CONTROL at 20 Hz;
         transfer: idle plus a parameter download and a 100-item mission upload and
-        download, three times; the loads reported while they ran.
+        download, three times; the loads reported while they ran. The emulated UART has
+        no baud rate, so the ground station's bytes go at 57600 baud in board time (its
+        writes wait for the board's clock), as the vehicle's own do (its link budget).
     mcu_instr_{poll,ticks_ms,link_poll,tick_<service>,tick_app}_{m3,m0}
         -icount shift=0 (a virtual ns an instruction), by the board's timer over many
         calls: one ep.poll() with nothing due, the emulated clock's ticks_ms(), one link's
@@ -107,6 +109,8 @@ class Workload:
         self.loads = []  # (board ms, per mille)
         self.pilot = pilot
         self.next_beat = self.next_stick = None
+        self.rx_rate = 0  # bytes/s: the downlink's, in board time (paced_writes)
+        self.rx_free = 0.0  # the board time the messages read so far have all come by
         gcs.message_hooks.append(self._hook)
 
     def _hook(self, _m, msg):
@@ -114,7 +118,29 @@ class Workload:
             self.clock.heard(msg.time_boot_ms)
         if msg.get_type() == "SYS_STATUS" and self.clock.last is not None:
             self.loads.append((self.clock.now(), msg.load))
+        now = self.clock.now()
+        if self.rx_rate and now is not None:
+            self.rx_free = max(self.rx_free, now) + len(msg.get_msgbuf()) * 1000.0 / self.rx_rate
         self.pace()
+
+    def paced_writes(self, bytes_per_s):
+        """The station's link as a radio's in board time: each write waits until the
+        bytes before it would have gone, and _wait acts on a message only once the bytes
+        read before it and its own would have come."""
+        self.rx_rate = bytes_per_s
+        write = self.gcs.write
+        free = [0.0]
+
+        def paced(buf):
+            now = self.clock.now()
+            if now is not None:
+                at = max(free[0], now)
+                while self.clock.now() < at:
+                    time.sleep(0.0002)
+                free[0] = at + len(buf) * 1000.0 / bytes_per_s
+            return write(buf)
+
+        self.gcs.write = paced
 
     def pace(self):
         now = self.clock.now()
@@ -150,29 +176,58 @@ class Workload:
         return sum(got) / len(got)
 
 
+def _wait(w, want, timeout=2.0):
+    """The next message for which want(msg) holds -> it, None after timeout s. Read as
+    fast as the host can: pymavlink's blocking reads wait in steps that, in board time
+    (which runs faster than the host's here), are longer than a radio's round trip."""
+    end = time.time() + timeout
+    while time.time() < end:
+        m = w.gcs.recv_msg()
+        if m is None:
+            w.pace()
+            time.sleep(0.0001)
+        elif want(m):
+            while w.rx_rate and w.clock.now() < w.rx_free:
+                time.sleep(0.0002)
+            return m
+    return None
+
+
 def _transfers(w, rounds=3):
-    """A parameter download, a 100-item mission upload and download, `rounds` times ->
-    the board times (ms) the transfers started and ended."""
+    """A parameter download, a 100-item mission upload and download, `rounds` times, by a
+    station that answers at once -> the board times (ms) the transfers started and ended."""
     from mission_gcs import MissionClient, plan
 
-    gcs = w.gcs
-    client = MissionClient(gcs, timeout=2.0)
+    client = MissionClient(w.gcs)  # (its encoders only)
     items = plan(100)
     start = w.clock.now()
     for _ in range(rounds):
-        gcs.mav.param_request_list_send(1, 1)
+        w.gcs.mav.param_request_list_send(1, 1)
         got = set()
-        deadline = time.time() + 30
-        while len(got) < 100 and time.time() < deadline:
-            m = gcs.recv_match(type="PARAM_VALUE", blocking=True, timeout=1)
-            if m is not None:
-                got.add(m.param_index)
-        if len(got) < 100:
-            raise RuntimeError("the parameter download gave %d of 100" % len(got))
-        if client.upload(items) != 0:
-            raise RuntimeError("the mission upload failed")
-        if len(client.download() or ()) != 100:
-            raise RuntimeError("the mission download did not return 100 items")
+        while len(got) < 100:
+            m = _wait(w, lambda m: m.get_type() == "PARAM_VALUE")
+            if m is None:
+                raise RuntimeError("the parameter download gave %d of 100" % len(got))
+            got.add(m.param_index)
+        client._send("mission_count", 1, 1, len(items), 0)
+        while True:
+            m = _wait(w, lambda m: m.get_type() in ("MISSION_REQUEST_INT", "MISSION_ACK"))
+            if m is None or m.get_type() == "MISSION_ACK" and m.type != 0:
+                raise RuntimeError("the mission upload failed: %s" % m)
+            if m.get_type() == "MISSION_ACK":
+                break
+            client.send_item(m.seq, items[m.seq])
+        client._send("mission_request_list", 1, 1, 0)
+        if _wait(w, lambda m: m.get_type() == "MISSION_COUNT") is None:
+            raise RuntimeError("no MISSION_COUNT")
+        for seq in range(len(items)):
+            for _ in range(5):
+                client._send("mission_request_int", 1, 1, seq, 0)
+                if _wait(w, lambda m: m.get_type() == "MISSION_ITEM_INT" and m.seq == seq, 1.0):
+                    break
+            else:
+                raise RuntimeError("the mission download stopped at item %d" % seq)
+        client._send("mission_ack", 1, 1, 0, 0)
     return start, w.clock.now()
 
 
@@ -185,6 +240,7 @@ def load(board, kind):
         w = Workload(gcs, pilot=(kind == "pilot"))
         w.run_for(WARMUP_MS)
         if kind == "transfer":
+            w.paced_writes(BAUD // 10)
             start, end = _transfers(w)
             w.run_for(1500)  # the report of the transfers' last second
             # Reports whose second lies within the transfers (the first is partly idle).

@@ -238,6 +238,16 @@ class Link:
             rank = self._auto(nbytes)
         return self.credit - nbytes * 1000 >= _FLOOR[rank]
 
+    def ready_in(self, nbytes, rank):
+        """ms until a frame of nbytes could go at rank (1 at least: a sender that waits
+        for the budget sleeps until then, not a pass at a time)."""
+        bps = self.bytes_per_s
+        if bps <= 0 or bps > _UNPACED:
+            return 1
+        self._refill()
+        need = _FLOOR[rank] + nbytes * 1000 - self.credit
+        return need // bps + 1 if need > 0 else 1
+
     def _pay(self, n):
         """Pay for the frame of n bytes at self.rank (RANK_AUTO: by its sender) -> paid;
         False: the budget holds it back (counted). One call a send: refill, rank, the

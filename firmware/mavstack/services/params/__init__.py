@@ -22,7 +22,7 @@ from .encoding import LinkEncodings, move, put16
 from .table import ParamTable, ID_LEN, READ_ONLY, REBOOT
 from .table import UINT8, INT8, UINT16, INT16, UINT32, INT32, REAL32  # noqa: F401
 from .table import UINT64, INT64, REAL64  # noqa: F401  (declaring one is an error)
-from .store import ParamStore, Guard
+from .store import ParamStore, Guard, VALUE_FRAME
 
 AFTER = ("status",)  # "auto": the conventions each link's ground station assumes
 
@@ -50,7 +50,6 @@ _ERR_TYPE_MISMATCH = const(7)
 
 # Pacing: the link's budget decides; a tick sends at most this many values a link.
 _MAX_PER_TICK = const(8)
-_VALUE_FRAME = const(37)  # bytes of a MAVLink 2 PARAM_VALUE (unsigned), asked of the budget
 _OWED_LIST = const(1)  # _want: in a list, or a change to announce
 _OWED_ANSWER = const(2)  # _want: an answer the budget held back: goes first
 
@@ -133,7 +132,7 @@ class Params(ParamStore, LinkEncodings, ParamTable):
         # Held-back answers level with the streams: never into the reserve a flood of
         # reads could otherwise take from other ground stations' answers.
         rank = RANK_BULK if answer else RANK_FILL
-        if not link.can_send(_VALUE_FRAME, rank):
+        if not link.can_send(VALUE_FRAME, rank):
             return False
         i = self._owed(li, answer)
         link.rank = rank

@@ -9,6 +9,7 @@ in RAM storage (IN_PLACE), is packed and read where it lies; under a Guard inste
 Reference: docs/services/params.md
 """
 from ...compat import const, ticks_diff, heap_open, heap_close, to_grid
+from ...link import RANK_BULK, RANK_FILL
 
 FILE = "params"
 
@@ -22,6 +23,7 @@ _RESULT_DENIED = const(2)
 _RESULT_UNSUPPORTED = const(3)
 _RESULT_FAILED = const(4)
 _IDLE_MS = const(1000)  # the tick with nothing owed and nothing to save
+VALUE_FRAME = const(37)  # bytes of a MAVLink 2 PARAM_VALUE (unsigned), asked of the budget
 
 
 class ParamStore:
@@ -185,15 +187,22 @@ class ParamStore:
         return wait if ms <= 0 or ms > wait else ms
 
     def _wait(self, now):
-        """ms to the next work: 1 while values are owed to a link (paced), else the
-        next second on the loop's grid."""
+        """ms to the next work: while values are owed to a link, until its budget has
+        room for the next (waking a pass at a time to find none cost more than the
+        sends), else the next second on the loop's grid."""
         pending = self._pending
+        ms = _IDLE_MS
         i = 0
         while i < len(pending):
             if pending[i]:
-                return 1
+                ms = self._ready(i, ms)
             i += 1
-        return to_grid(now, _IDLE_MS)
+        return ms if ms < _IDLE_MS else to_grid(now, _IDLE_MS)
+
+    def _ready(self, i, ms):
+        # (apart from _wait: small frames, docs/design.md) The rank as _send_next's.
+        r = self.ep.links[i].ready_in(VALUE_FRAME, RANK_BULK if self._answers[i] else RANK_FILL)
+        return r if r < ms else ms
 
     def _take(self, values, saved):
         """A whole set of values (reload, defaults): sent and reported where changed."""
