@@ -8,9 +8,7 @@ qemu_m0.py): SYS_STATUS.load under three workloads, the instructions of the loop
         idle: the default streams at a 57600-baud budget, a ground station's 1 Hz HEARTBEAT;
         pilot: idle plus MANUAL_CONTROL at 20 Hz;
         transfer: idle plus a parameter download and a 100-item mission upload and
-        download, three times; the loads reported while they ran. The emulated UART has
-        no baud rate, so the ground station's bytes go at 57600 baud in board time (its
-        writes wait for the board's clock), as the vehicle's own do (its link budget).
+        download, three times, the station's link at 57600 baud in board time too.
     mcu_instr_{poll,ticks_ms,link_poll,tick_<service>,tick_app}_{m3,m0}
         -icount shift=0 (a virtual ns an instruction), by the board's timer over many
         calls: one ep.poll() with nothing due, the emulated clock's ticks_ms(), one link's

@@ -204,6 +204,23 @@ def test_ranks_spend_the_bucket_down_to_their_floors_in_order():
     assert link.credit // 1000 == left[RANK_VITAL] + 576
 
 
+def test_ready_in_says_when_a_held_frame_would_go():
+    from mavstack.link import RANK_FILL, RANK_AUTO
+
+    ep, link = _endpoint()
+    link.rank = RANK_FILL
+    while _heartbeat(link):
+        pass
+    link.rank = RANK_AUTO
+    ms = link.ready_in(100, RANK_FILL)
+    assert 1 < ms <= 100 * 1000 // BYTES_PER_S + 1  # (the bucket is at its floor, or a frame above)
+    ep.poll(1000 + ms - 1)
+    assert not link.can_send(100, RANK_FILL)
+    ep.poll(1000 + ms)
+    assert link.can_send(100, RANK_FILL) and link.ready_in(100, RANK_FILL) == 1
+    assert _endpoint(10 ** 7)[1].ready_in(100, RANK_FILL) == 1  # not budgeted
+
+
 def test_a_refused_frame_gives_its_sequence_number_back():
     from mavstack.link import RANK_OTHER, RANK_AUTO
 

@@ -240,6 +240,23 @@ def test_list_takes_the_link_budget_but_never_bursts_past_it(tmp_path):
     assert 0.95 * bound_ms < elapsed_ms < 1.15 * bound_ms, (elapsed_ms, bound_ms)
 
 
+def test_a_list_held_by_the_budget_sleeps_until_there_is_room(tmp_path):
+    """While the budget holds the next value back, the loop may sleep until the bucket
+    has room for it (Link.ready_in): a pass a value, not a pass a millisecond."""
+    b = Rig(tmp_path, rate=5760)
+    b.send(mav.MAVLink_param_request_list_message(1, 1))
+    b.listed()  # (the first list spends the bucket a quiet link saved up)
+    b.send(mav.MAVLink_param_request_list_message(1, 1))
+    got, passes = [], 0
+    while len(got) < N:
+        b.ep.poll(b.now)
+        passes += 1
+        b.now += max(1, b.ep.wait_ms)
+        got += b.values()
+    assert [m.param_index for m in got] == list(range(N))
+    assert passes < 1.5 * N  # 37 bytes a value: 6.4 ms of the link between them
+
+
 def test_list_asked_again_continues_and_other_links_are_undisturbed(tmp_path):
     b = Rig(tmp_path, links=2, rate=5760)
     b.send(mav.MAVLink_param_request_list_message(1, 1), link=0)

@@ -246,7 +246,7 @@ class Link:
             return 1
         self._refill()
         need = _FLOOR[rank] + nbytes * 1000 - self.credit
-        return need // bps + 1 if need > 0 else 1
+        return (need + bps - 1) // bps if need > 0 else 1
 
     def _pay(self, n):
         """Pay for the frame of n bytes at self.rank (RANK_AUTO: by its sender) -> paid;
