@@ -395,4 +395,4 @@ def test_two_paths_to_one_peer_do_not_loop(net):
 def test_forwarding_rank_floor():
     from mavstack import link
 
-    assert link._FLOOR_FILL == link._FLOOR[link.RANK_FILL]
+    assert link._FLOOR_FILL == link._FLOOR[link.RANK_FILL] * 1000

@@ -25,13 +25,15 @@ RANK_BULK = const(2)
 RANK_FILL = const(3)
 RANK_OTHER = const(4)
 _RANK_NEW = const(5)  # (by _auto only) answers to a sender not kept, within its share
-# Each rank's floor, in thousandths of a byte: a send may take the credit down to it.
+# Each rank's floor, in bytes (the credit counts thousandths): a send may take the credit
+# down to it. (Bytes, not thousandths: a frozen tuple's ints from 2^13 up are long-int
+# objects, and arithmetic on one allocates.)
 # The gaps between the floors are what each rank keeps for the ones above it: 256 bytes
 # for answers (a flood's share and another station's answers at once), the lower half of
 # it for the stations kept, and a due stream frame (up to 64 bytes) goes at once while a
 # list keeps the credit at its floor.
-_FLOOR = (-128000, 0, 256000, 320000, 384000, 128000)
-_FLOOR_FILL = const(320000)  # _FLOOR[RANK_FILL], for forward()
+_FLOOR = (-128, 0, 256, 320, 384, 128)
+_FLOOR_FILL = const(320000)  # _FLOOR[RANK_FILL] in thousandths, for forward()
 _BURST_MS = const(200)  # the bucket holds 200 ms of the link ...
 _MIN_CAP = const(700000)  # ... or RANK_OTHER's floor and a full MAVLink 2 frame
 _UNPACED = const(5000000)  # B/s: above this a link is not budgeted (and bps * ms stays small)
@@ -236,7 +238,7 @@ class Link:
         self._refill()
         if rank < 0:
             rank = self._auto(nbytes)
-        return self.credit - nbytes * 1000 >= _FLOOR[rank]
+        return self.credit - nbytes * 1000 >= _FLOOR[rank] * 1000
 
     def ready_in(self, nbytes, rank):
         """ms until a frame of nbytes could go at rank (1 at least: a sender that waits
@@ -245,7 +247,7 @@ class Link:
         if bps <= 0 or bps > _UNPACED:
             return 1
         self._refill()
-        need = _FLOOR[rank] + nbytes * 1000 - self.credit
+        need = (_FLOOR[rank] + nbytes) * 1000 - self.credit
         return (need + bps - 1) // bps if need > 0 else 1
 
     def _pay(self, n):
@@ -258,7 +260,7 @@ class Link:
         bps = self.bytes_per_s
         if 0 < bps <= _UNPACED:
             self._refill()
-            if self.credit - n * 1000 < _FLOOR[rank]:
+            if self.credit - n * 1000 < _FLOOR[rank] * 1000:
                 self.tx_held = (self.tx_held + 1) & TX_WRAP
                 return False
             self.credit -= n * 1000
