@@ -18,8 +18,8 @@ class Encoder:
     sign = None
 
     def __init__(self, crc_len, version=2):
-        self.crc_len = crc_len  # the dialect's CRC_LEN; its block, read per frame:
-        self.infos = crc_len.block
+        self.crc_len = crc_len  # the dialect's CRC_LEN (services read lengths from it)
+        self.infos = crc_len.block  # its block, read per frame by kernels.id_info
         self.version = version
         self.buf = bytearray(FRAME_MAX)
         self.seq = 0
