@@ -150,7 +150,8 @@ def profile(kind="pilot", seconds=10, detail=False):
         gcs = mavutil.mavlink_connection(b.ptys[-1], baud=115200, source_system=255, source_component=190)
         w = bench_mcu_load.Workload(gcs, pilot=(kind == "pilot"))
         w.run_for(2000)
-        if kind == "transfer":
+        if kind == "transfer":  # (paced as bench_mcu_load paces it)
+            w.paced_writes(bench_mcu_load.BAUD // 10)
             bench_mcu_load._transfers(w, rounds=1)
         else:
             w.run_for(span_ms)

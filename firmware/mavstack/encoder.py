@@ -74,7 +74,8 @@ class Encoder:
         if self.sign is not None:
             ids |= IFLAG_SIGNED << 24
         end = seal_v2(self.buf, info, ids, msgid)
-        self._count()
+        self.seq = (self.seq + 1) & 0xFF  # (as _count: one call less a frame)
+        self.frames = (self.frames + 1) & 0x1FFFFFFF
         if self.sign is None:
             return end
         return end + self.sign(self.buf, end)

@@ -267,7 +267,9 @@ class Link:
         if rank == RANK_FILL or rank == RANK_OTHER:
             self.tx_low = (self.tx_low + n) & TX_WRAP
         if self._slot >= 0:
-            n = self._share(self._slot) - n * 1000
+            if self._filled[self._slot] != self.endpoint.now:  # (_auto has filled it)
+                self._share(self._slot)
+            n = self._allow[self._slot] - n * 1000
             self._allow[self._slot] = n if n > 0 else 0
         return True
 

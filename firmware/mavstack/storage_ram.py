@@ -31,9 +31,10 @@ def _put32(b, o, v):
     b[o + 3] = (v >> 24) & 0xFF
 
 
-def _copy_in(mem, d, src, n):
-    """mem[d:d+n] = src[0:n] (slices would allocate a slice object on 1.25)."""
-    place(mem, d, src, n)
+def _put24(b, o, v):
+    b[o] = v & 0xFF
+    b[o + 1] = (v >> 8) & 0xFF
+    b[o + 2] = v >> 16
 
 
 def _copy_out(mem, s, dst, n):
@@ -51,16 +52,23 @@ class RamFile:
     """
 
     def __init__(self, storage, entry, area):
+        # Where the area is, its size and its length field, read once (they stay put).
         self.st = storage
-        self.entry = entry
         self.area = area
         self.pos = 0
-
-    def _base(self):
-        return self.st.area_base(self.entry, self.area) + self.pos
+        self.base = storage.area_base(entry, area)
+        self.cap = storage.capacity(entry)
+        self.at = storage.length_at(entry, area)
 
     def _length(self):
-        return self.st.length(self.entry, self.area)
+        mem = self.st.mem
+        o = self.at
+        return mem[o] | mem[o + 1] << 8 | mem[o + 2] << 16
+
+    def _grown(self):
+        # The area's length is at least pos.
+        if self.pos > self._length():
+            _put24(self.st.mem, self.at, self.pos)
 
     def seek(self, pos, whence=0):
         if whence == 2:
@@ -77,7 +85,7 @@ class RamFile:
             n = len(buf)
         if n < 0:
             n = 0
-        _copy_out(self.st.mem, self._base(), buf, n)
+        _copy_out(self.st.mem, self.base + self.pos, buf, n)
         self.pos += n
         return n
 
@@ -88,15 +96,14 @@ class RamFile:
         return bytes(buf)
 
     def write(self, buf):
-        n = self.st.capacity(self.entry) - self.pos
+        n = self.cap - self.pos
         if n > len(buf):
             n = len(buf)
         if n < 0:
             n = 0
-        _copy_in(self.st.mem, self._base(), buf, n)
+        place(self.st.mem, self.base + self.pos, buf, n)
         self.pos += n
-        if self.pos > self._length():
-            self.st.set_length(self.entry, self.area, self.pos)
+        self._grown()
         return n
 
     # In place (RamStorage.IN_PLACE): the area is memory()[offset():], with room() bytes
@@ -105,15 +112,14 @@ class RamFile:
         return self.st.mem
 
     def offset(self):
-        return self._base()
+        return self.base + self.pos
 
     def room(self):
-        return self.st.capacity(self.entry) - self.pos
+        return self.cap - self.pos
 
     def wrote(self, n):
         self.pos += n
-        if self.pos > self._length():
-            self.st.set_length(self.entry, self.area, self.pos)
+        self._grown()
 
     def flush(self):
         pass
@@ -180,17 +186,17 @@ class RamStorage:
     def capacity(self, e):
         return _u32(self.mem, self._entry(e) + 20)
 
+    def length_at(self, e, area):
+        """The offset of an area's length (3 bytes) in the region."""
+        return self._entry(e) + 24 + 4 * area
+
     def length(self, e, area):
-        o = self._entry(e) + 24 + 4 * area
+        o = self.length_at(e, area)
         mem = self.mem
         return mem[o] | mem[o + 1] << 8 | mem[o + 2] << 16
 
     def set_length(self, e, area, n):
-        o = self._entry(e) + 24 + 4 * area
-        mem = self.mem
-        mem[o] = n & 0xFF
-        mem[o + 1] = (n >> 8) & 0xFF
-        mem[o + 2] = n >> 16
+        _put24(self.mem, self.length_at(e, area), n)
 
     def _current(self, e):
         return self.mem[self._entry(e) + 27]

@@ -3,8 +3,9 @@
 
 All three are kept as little-endian bytes and stamped into payloads as bytes (uptime
 passes 2^30 ms after 12.4 days, 2^30 us after 18 minutes, and the time of day always:
-docs/design.md). Advancing adds the few milliseconds of one poll bytewise, so nothing
-here allocates.
+docs/design.md). The endpoint's poll tells it the time; what passed is added bytewise
+when the time is next read (or within a minute), so nothing here allocates and a pass
+without a reader costs a comparison.
 
     clock = ep.clock                   # made by the endpoint, advanced by its poll
     clock.stamp_ms(buf, off)           # time_boot_ms
@@ -13,7 +14,10 @@ here allocates.
     clock.seconds                      # uptime in whole seconds (a small int for years)
 Reference: docs/core.md.
 """
-from .compat import ticks_diff
+from .compat import const, ticks_diff
+from .kernels import place
+
+_LAZY_MS = const(50000)  # the most advance() leaves uncounted
 
 
 def add_le(buf, n, size):
@@ -27,8 +31,7 @@ def add_le(buf, n, size):
 
 
 def _copy(dst, off, src, n):
-    for i in range(n):
-        dst[off + i] = src[i]
+    place(dst, off, src, n)
 
 
 class Clock:
@@ -37,17 +40,26 @@ class Clock:
         self.us = bytearray(8)  # uptime in us
         self.unix = bytearray(8)  # unix time in us, all zero while unknown
         self.known = False
-        self.seconds = 0
+        self._seconds = 0
         self._sub_ms = 0  # ms not yet a whole second
-        self._last = now
+        self._last = self._now = now
         if offset_ms:  # tests start the clock late, to see values past 2^30 (boot only)
             for i in range(8):
                 self.ms[i] = (offset_ms >> (8 * i)) & 0xFF
                 self.us[i] = (offset_ms * 1000 >> (8 * i)) & 0xFF
-            self.seconds = offset_ms // 1000
+            self._seconds = offset_ms // 1000
             self._sub_ms = offset_ms % 1000
 
     def advance(self, now):
+        """The time is now (the endpoint's poll, every pass). Counted into the bytes when
+        they are next read, or once the time not counted nears a minute: a pass costs a
+        comparison, not three sums."""
+        self._now = now
+        if ticks_diff(now, self._last) > _LAZY_MS:
+            self._count()
+
+    def _count(self):
+        now = self._now
         d = ticks_diff(now, self._last)
         self._last = now
         if d <= 0:  # the same ms, or a clock set back: nothing to add
@@ -64,11 +76,12 @@ class Clock:
         if self.known:
             add_le(self.unix, us, 8)
         s = self._sub_ms + d
-        self.seconds += s // 1000
+        self._seconds += s // 1000
         self._sub_ms = s % 1000
 
     def set_unix(self, src, off=0):
         """Time of day from 8 little-endian bytes (SYSTEM_TIME, GPS); zero means unknown."""
+        self._count()  # (the time before it is not added to the new time of day)
         known = False
         for i in range(8):
             b = src[off + i]
@@ -78,21 +91,32 @@ class Clock:
         self.known = known
 
     def stamp_ms(self, buf, off):
+        self._count()
         _copy(buf, off, self.ms, 4)
 
     def stamp_us(self, buf, off):
+        self._count()
         _copy(buf, off, self.us, 8)
 
     def stamp_us32(self, buf, off):
         """A uint32 time_usec (SERVO_OUTPUT_RAW): the low four bytes."""
+        self._count()
         _copy(buf, off, self.us, 4)
 
     def stamp_unix(self, buf, off):
+        self._count()
         _copy(buf, off, self.unix, 8)
+
+    @property
+    def seconds(self):
+        self._count()
+        return self._seconds
 
     # Python ints, for the application and tests (past the small ints: docs/design.md).
     def uptime_ms(self):
+        self._count()
         return int.from_bytes(self.ms, "little")
 
     def unix_usec(self):
+        self._count()
         return int.from_bytes(self.unix, "little")

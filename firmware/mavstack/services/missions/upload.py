@@ -192,11 +192,12 @@ class Upload(Transfer):
         # Items in that were asked after the new first missing one: all those after it,
         # unless it was asked again (then only those asked since: none in yet).
         self.mark = self.top if self.again & 1 else self.seq + 1
-        self.after = 0
-        i = self.mark - self.seq
-        while i < self.window:
-            self.after += self.held >> i & 1
+        h = self.held >> (self.mark - self.seq)  # (held has no bits past the window)
+        i = 0
+        while h:  # its bits set, one pass each (in order, none)
+            h &= h - 1
             i += 1
+        self.after = i
         if self.strict:
             self._ask_next(now)
             return

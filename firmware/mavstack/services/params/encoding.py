@@ -16,6 +16,7 @@ Reference: docs/services/params.md
 """
 from ...compat import const
 from ...fields import u16, i16, u32, i32
+from ...kernels import copy
 
 # MAV_PARAM_TYPE (table.py has them all); the integer types up to INT32 are signed
 # when even, unsigned when odd.
@@ -323,10 +324,10 @@ class LinkEncodings:
 
     def _fill(self, buf, off, i, cast):
         """PARAM_VALUE for parameter i into buf[off:], its value C-cast if cast."""
-        copy4(buf, off, self._wire if cast else self._values, 4 * i)
+        copy(buf, self._wire if cast else self._values, i << 12 | off, 4)  # (offsets: kernels)
         put16(buf, off + 4, self.count)
         put16(buf, off + 6, i)
-        move(buf, off + 8, self._names, _ID_LEN * i, _ID_LEN)
+        copy(buf, self._names, i << 14 | (off + 8), _ID_LEN)
         buf[off + 24] = self._types[i]
 
     def _cast_in(self, link, i, p):
