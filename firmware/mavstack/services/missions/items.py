@@ -185,12 +185,16 @@ def _coord(rec, o, local, need, is_int):
         return False
     if not need & _POS or local:
         return True
-    # Latitude (o 16) within +-90 degrees, longitude within +-180, by 16-bit halves.
+    # Latitude (o 16) within +-90 degrees, longitude within +-180, by 16-bit halves:
+    # a high half strictly between the bounds' is within them, else the halves compare.
+    hi = rec[o + 2] | rec[o + 3] << 8
+    if hi & 0x8000:
+        hi -= 0x10000
     if o == 16:
-        return (i32_cmp(rec, 16, _LAT_MAX_HI, _LAT_MAX_LO) <= 0
-                and i32_cmp(rec, 16, _LAT_MIN_HI, _LAT_MIN_LO) >= 0)
-    return (i32_cmp(rec, 20, _LON_MAX_HI, _LON_MAX_LO) <= 0
-            and i32_cmp(rec, 20, _LON_MIN_HI, _LON_MIN_LO) >= 0)
+        return _LAT_MIN_HI < hi < _LAT_MAX_HI or (
+            i32_cmp(rec, 16, _LAT_MAX_HI, _LAT_MAX_LO) <= 0 and i32_cmp(rec, 16, _LAT_MIN_HI, _LAT_MIN_LO) >= 0)
+    return _LON_MIN_HI < hi < _LON_MAX_HI or (
+        i32_cmp(rec, 20, _LON_MAX_HI, _LON_MAX_LO) <= 0 and i32_cmp(rec, 20, _LON_MIN_HI, _LON_MIN_LO) >= 0)
 
 
 # --- the STATUSTEXT of a refused item ------------------------------------------------
