@@ -52,23 +52,26 @@ class RamFile:
     """
 
     def __init__(self, storage, entry, area):
-        # Where the area is, its size and its length field, read once (they stay put).
-        self.st = storage
-        self.area = area
+        # Four attributes (a handle per area of every file: small on the heap): the region,
+        # the place in the area, where the area starts, where its length is kept. They
+        # stay put; the capacity is read from the entry, before the lengths.
+        self.mem = storage.mem
         self.pos = 0
         self.base = storage.area_base(entry, area)
-        self.cap = storage.capacity(entry)
         self.at = storage.length_at(entry, area)
 
     def _length(self):
-        mem = self.st.mem
+        mem = self.mem
         o = self.at
         return mem[o] | mem[o + 1] << 8 | mem[o + 2] << 16
+
+    def _capacity(self):
+        return _u32(self.mem, self.at - (self.at - _HEADER) % _ENTRY + 20)
 
     def _grown(self):
         # The area's length is at least pos.
         if self.pos > self._length():
-            _put24(self.st.mem, self.at, self.pos)
+            _put24(self.mem, self.at, self.pos)
 
     def seek(self, pos, whence=0):
         if whence == 2:
@@ -85,7 +88,7 @@ class RamFile:
             n = len(buf)
         if n < 0:
             n = 0
-        _copy_out(self.st.mem, self.base + self.pos, buf, n)
+        _copy_out(self.mem, self.base + self.pos, buf, n)
         self.pos += n
         return n
 
@@ -96,12 +99,12 @@ class RamFile:
         return bytes(buf)
 
     def write(self, buf):
-        n = self.cap - self.pos
+        n = self._capacity() - self.pos
         if n > len(buf):
             n = len(buf)
         if n < 0:
             n = 0
-        place(self.st.mem, self.base + self.pos, buf, n)
+        place(self.mem, self.base + self.pos, buf, n)
         self.pos += n
         self._grown()
         return n
@@ -109,13 +112,13 @@ class RamFile:
     # In place (RamStorage.IN_PLACE): the area is memory()[offset():], with room() bytes
     # from here; a writer that filled it says how much (wrote). Nothing is copied.
     def memory(self):
-        return self.st.mem
+        return self.mem
 
     def offset(self):
         return self.base + self.pos
 
     def room(self):
-        return self.cap - self.pos
+        return self._capacity() - self.pos
 
     def wrote(self, n):
         self.pos += n
@@ -266,9 +269,10 @@ class RamStorage:
         return self._opened(e, mode)
 
     def _opened(self, e, mode):
-        h = self._handle(e, self._current(e))
+        area = self._current(e)
+        h = self._handle(e, area)
         if "w" in mode:
-            self.set_length(e, h.area, 0)
+            self.set_length(e, area, 0)
         self._set_flags(e, self._flags(e) | _EXISTS)
         return h
 
