@@ -94,14 +94,17 @@ class Endpoint:
             self._due.append(self.now)
         return service
 
-    def on(self, msgid, handler):
-        """Call handler(link, payload) for every frame with this id (if the dialect has it)."""
+    def on(self, msgid, handler, wake=True):
+        """Call handler(link, payload) for every frame with this id (if the dialect has it).
+        wake=False: its frames do not wake the service's tick (a handler that leaves the
+        tick work says so, ep.wake(service)): a mission item's pass skips every tick."""
         if msgid not in self.dialect.CRC_LEN:
             return False
         # A tuple: one small object per message id (a list takes two).
         self._handlers[msgid] = self._handlers.get(msgid, ()) + (handler,)
+        owner = self._owner if wake else _NONE
         was = self._wakes.get(msgid, _NONE)
-        self._wakes[msgid] = self._owner if was in (_NONE, self._owner) else (was if self._owner == _NONE else _ALL)
+        self._wakes[msgid] = owner if was in (_NONE, owner) else (was if owner == _NONE else _ALL)
         return True
 
     def setting(self, name, default=None):

@@ -129,14 +129,18 @@ class Missions:
         request = t.on_request
         rare = self._on_rare
         for msgid, handler in ((_MSG_COUNT, self._on_count), (_MSG_WRITE_PARTIAL_LIST, rare),
-                               (_MSG_ITEM, item), (_MSG_REQUEST_LIST, t.on_request_list),
-                               (_MSG_REQUEST_PARTIAL_LIST, rare), (_MSG_REQUEST, request),
+                               (_MSG_REQUEST_LIST, t.on_request_list), (_MSG_REQUEST_PARTIAL_LIST, rare),
                                (_MSG_CLEAR_ALL, rare), (_MSG_SET_CURRENT, rare), (_MSG_ACK, t.on_ack)):
             ep.on(msgid, handler)
+        # Items and requests, a hundred a transfer, leave the tick no work (its retry and
+        # staleness deadlines stand; an item that leaves requests unasked wakes it):
+        # their passes run no tick at all.
+        ep.on(_MSG_ITEM, item, False)
+        ep.on(_MSG_REQUEST, request, False)
         ep.capabilities |= _CAP_MISSION_FLOAT
         if self.has_int:
-            ep.on(_MSG_ITEM_INT, item)
-            ep.on(_MSG_REQUEST_INT, request)
+            ep.on(_MSG_ITEM_INT, item, False)
+            ep.on(_MSG_REQUEST_INT, request, False)
             ep.capabilities |= _CAP_MISSION_INT
         if self.has_type and stores[1] is not None:
             ep.capabilities |= _CAP_MISSION_FENCE
@@ -154,6 +158,7 @@ class Missions:
             t.cancel()  # stale: the ground station went away, or only starts over
         elif t.state == UPLOAD:
             ms = t.tick(now)
+            t.look = ticks_add(now, ms)
         elif t.state == PUSH:
             self.rare.push(t, now)
             ms = 1

@@ -268,9 +268,11 @@ def _jump(m, p, seq):
 
 def _numbers(p, need):
     """NaN where the command needs a number -> INVALID_PARAM1..4, 7; else ACCEPTED."""
-    for i in range(4):
-        if need & (1 << i) and f32_is_nan(p, i * 4):
+    i = 0
+    while need >> i & 0x0F:  # (param1..4 as needed: a waypoint needs none of them)
+        if need >> i & 1 and f32_is_nan(p, i * 4):
             return _INVALID_PARAM1 + i
+        i += 1
     if need & _P7 and f32_is_nan(p, 24):
         return _INVALID_PARAM7
     return _ACCEPTED

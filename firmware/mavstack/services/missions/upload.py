@@ -12,7 +12,7 @@ Reference: docs/services/missions.md.
 """
 import gc
 
-from ...compat import const, ticks_diff
+from ...compat import const, ticks_add, ticks_diff
 from ...link import RANK_FILL
 from . import items as mission_items
 from .transfer import IDLE, UPLOAD, Transfer
@@ -61,6 +61,7 @@ class Upload(Transfer):
         self.tries = 0  # expiries since the last new item
         self.current = -1  # the item sent with current=1, -2: keep the current one
         self.origin = 0  # packet sequence number of the frame that started the upload
+        self.look = 0  # ticks at which the service's tick next looks at this upload
 
     def upload(self, link, store, first, keep):
         """Ask link's sender for items first .. end of a plan of count items (the caller
@@ -146,6 +147,12 @@ class Upload(Transfer):
         self.cursor = seq + 1
         if self._take(link, p, seq):
             self._got(seq, self.m.ep.now)
+            if self.state == UPLOAD and (self.top < self.end and self.top - self.seq < self.window
+                                         or ticks_diff(self.look, ticks_add(self.m.ep.now, self.rto)) > 0):
+                # Items do not wake the tick (missions/__init__.py): it is woken when
+                # requests wait for the budget, or when the retry may now be due before
+                # the look it last set (a shorter round trip).
+                self.m.ep.wake(self.m)
 
     def _take(self, link, p, seq):
         """Check and stage item seq -> True; else the upload ends with the error."""
