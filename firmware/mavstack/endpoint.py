@@ -151,7 +151,14 @@ class Endpoint:
         and the frame goes on to the others."""
         handlers = self._handlers.get(msgid)
         if handlers is not None:
-            self._wake_for(msgid)
+            # A frame with handlers: their service's tick runs on this pass (it may have
+            # been left work), or every tick, or none (on(wake=False)). (i reused: few locals.)
+            i = self._wakes.get(msgid, _ALL)
+            if i == _ALL:
+                self.heard = True
+            elif i >= 0:
+                self._due[i] = self.now
+                self._next = self.now
             self.faults.payload = payload
             i = 0  # by index: see docs/design.md
             while i < len(handlers):
@@ -159,16 +166,6 @@ class Endpoint:
                 if self.faults.error is not None:
                     self.faults.count(MESSAGE, msgid)
                 i += 1
-
-    def _wake_for(self, msgid):
-        # A frame with handlers: their service's tick runs on this pass (it may have
-        # been left work), or every tick.
-        w = self._wakes.get(msgid, _ALL)
-        if w == _ALL:
-            self.heard = True
-        elif w >= 0:
-            self._due[w] = self.now
-            self._next = self.now
 
     def wake(self, service=None):
         """Ticks run on the next pass, at once: the service's, or every one (work made

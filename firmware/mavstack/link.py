@@ -327,7 +327,8 @@ class Link:
             self._slot = self._sender()
         if self._slot < 0 or self._share(self._slot) < n * 1000:
             return RANK_OTHER
-        return RANK_REPLY if self._kept(self._slot) else _RANK_NEW
+        n = ticks_diff(self.endpoint.now, self._beat[self._slot])  # (_kept, inline; n reused)
+        return RANK_REPLY if 0 <= n < _KEEP_MS else _RANK_NEW
 
     def sender_kept(self):
         """Is the frame being handled from a sender whose share is kept (the ground
