@@ -268,7 +268,7 @@ def test_list_asked_again_continues_and_other_links_are_undisturbed(tmp_path):
     for _ in range(5):  # asked again and again: still one list
         b.send(mav.MAVLink_param_request_list_message(1, 1), link=0)
         b.poll(20)
-    rest0 = first0 + b.listed(0)
+    rest0 = first0 + b.listed(0)[:N]  # (a pass may send a few: listed can read past N)
     rest1 = first1 + b.values(1)
     while len(rest1) < N:
         b.poll(10)

@@ -24,6 +24,7 @@ _RESULT_UNSUPPORTED = const(3)
 _RESULT_FAILED = const(4)
 _IDLE_MS = const(1000)  # the tick with nothing owed and nothing to save
 VALUE_FRAME = const(37)  # bytes of a MAVLink 2 PARAM_VALUE (unsigned), asked of the budget
+_LIST_BATCH = const(3)  # values of a list a pass sends (see _ready)
 
 
 class ParamStore:
@@ -200,8 +201,14 @@ class ParamStore:
         return ms if ms < _IDLE_MS else to_grid(now, _IDLE_MS)
 
     def _ready(self, i, ms):
-        # (apart from _wait: small frames, docs/design.md) The rank as _send_next's.
-        r = self.ep.links[i].ready_in(VALUE_FRAME, RANK_BULK if self._answers[i] else RANK_FILL)
+        # (apart from _wait: small frames, docs/design.md) The rank as _send_next's. A
+        # list waits for room for _LIST_BATCH values (or what is left of it), sent on one
+        # pass: a pass a value cost more than the value. Answers wait for one.
+        if self._answers[i]:
+            r = self.ep.links[i].ready_in(VALUE_FRAME, RANK_BULK)
+        else:
+            r = self.ep.links[i].ready_in(VALUE_FRAME * (
+                self._pending[i] if self._pending[i] < _LIST_BATCH else _LIST_BATCH), RANK_FILL)
         return r if r < ms else ms
 
     def _take(self, values, saved):
