@@ -113,7 +113,8 @@ if app is not None:
     wrap(app, "tick", "tick.app")
 if DETAIL:  # the handlers by message id, the parsers, the mission stores and transfer
     for msgid in list(ep._handlers):
-        ep._handlers[msgid] = tuple(wrapped(h, "handler.%d" % msgid, 2) for h in ep._handlers[msgid])
+        hs = ep._handlers[msgid]  # (the ticker it wakes, handlers...)
+        ep._handlers[msgid] = hs[:1] + tuple(wrapped(h, "handler.%d" % msgid, 2) for h in hs[1:])
     for i, link in enumerate(ep.links):
         wrap(link.rx, "feed", "link%d.rx.feed" % i, 2)
         wrap(link, "begin", "link%d.begin" % i, 0)

@@ -40,8 +40,8 @@ class Endpoint:
         self.compid = compid
         self.links = []
         self.now = self._born = ticks_ms()
-        self._handlers = {}  # msgid -> (handler(link, payload), ...)
-        self._wakes = {}  # msgid -> the ticker its handlers' frames wake (_ALL, _NONE)
+        # msgid -> (the ticker its frames wake (_ALL, _NONE), handler(link, payload), ...)
+        self._handlers = {}
         self._owner = _ALL  # the ticker of the service attaching now
         self.tickers = []  # services with periodic work, in the order they were added
         self._due = []  # ticks_ms at which each ticker next has work
@@ -100,11 +100,12 @@ class Endpoint:
         tick work says so, ep.wake(service)): a mission item's pass skips every tick."""
         if msgid not in self.dialect.CRC_LEN:
             return False
-        # A tuple: one small object per message id (a list takes two).
-        self._handlers[msgid] = self._handlers.get(msgid, ()) + (handler,)
+        # A tuple: one small object per message id (a list takes two), the ticker first.
         owner = self._owner if wake else _NONE
-        was = self._wakes.get(msgid, _NONE)
-        self._wakes[msgid] = owner if was in (_NONE, owner) else (was if owner == _NONE else _ALL)
+        was = self._handlers.get(msgid, (_NONE,))
+        w = was[0]
+        w = owner if w in (_NONE, owner) else (w if owner == _NONE else _ALL)
+        self._handlers[msgid] = (w,) + was[1:] + (handler,)
         return True
 
     def setting(self, name, default=None):
@@ -153,14 +154,14 @@ class Endpoint:
         if handlers is not None:
             # A frame with handlers: their service's tick runs on this pass (it may have
             # been left work), or every tick, or none (on(wake=False)). (i reused: few locals.)
-            i = self._wakes.get(msgid, _ALL)
+            i = handlers[0]
             if i == _ALL:
                 self.heard = True
             elif i >= 0:
                 self._due[i] = self.now
                 self._next = self.now
             self.faults.payload = payload
-            i = 0  # by index: see docs/design.md
+            i = 1  # by index: see docs/design.md
             while i < len(handlers):
                 self.faults.deliver(handlers[i], link)
                 if self.faults.error is not None:

@@ -445,8 +445,9 @@ def meter(b, stores):
     global _copy, _meter
     m = _meter = Meter()
     ep = b.ep
-    for msgid in ep._handlers:  # a tuple of handlers per message id
-        ep._handlers[msgid] = tuple(Own(m, h).call2 for h in ep._handlers[msgid])
+    for msgid in ep._handlers:  # per message id: the ticker it wakes, then its handlers
+        hs = ep._handlers[msgid]
+        ep._handlers[msgid] = hs[:1] + tuple(Own(m, h).call2 for h in hs[1:])
     missions = ep.services["missions"]
     missions.tick = Own(m, missions.tick).call1
     for link in ep.links:
