@@ -54,8 +54,8 @@ def build(dialect, board="unix"):
     taken = {}
     register = Endpoint.on
 
-    def on(ep, msgid, handler):  # Endpoint.on, noting what each service takes
-        if not register(ep, msgid, handler):
+    def on(ep, msgid, handler, wake=True):  # Endpoint.on, noting what each service takes
+        if not register(ep, msgid, handler, wake):
             return False
         taken.setdefault(msgid, []).append(handler)
         return True

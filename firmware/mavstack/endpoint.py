@@ -210,9 +210,10 @@ class Endpoint:
             self._ticks(now)
         if self.heard:  # woken meanwhile
             self.wait_ms = 0
-        faults.report(now)
-        if faults.owed:
-            self.until(faults.report_at(now))
+        if faults.owed:  # a fault to report (at most one every REPORT_MS)
+            faults.report(now)
+            if faults.owed:
+                self.until(faults.report_at(now))
 
     def _ticks(self, now):
         # A ticker due within _SLACK_MS runs now too: fewer passes wake the loop. (Every

@@ -241,7 +241,7 @@ class Missions:
         elif not self.transfer.holds(link, UPLOAD):
             self._on_rare(link, p)  # a repeat of the last item whose ACK was lost?
         elif (p[37] if self.has_type else 0) == self.transfer.store.mission_type:
-            self.transfer.item(link, p, u16(p, 28))
+            self.transfer.item(link, p, p[28] | p[29] << 8)  # seq
 
     def _guided(self, link, p):
         # current 2 / 3: not a plan's item but ArduPilot's "guided" go-to / change altitude

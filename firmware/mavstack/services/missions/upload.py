@@ -131,7 +131,8 @@ class Upload(Transfer):
     # --- items --------------------------------------------------------------------
     def item(self, link, p, seq):
         """Item seq from the uploader, of the plan type under upload."""
-        if seq >= self.top or seq < self.first or sent_before(link.rx, self.origin):
+        if seq >= self.top or seq < self.first or (
+                link.rx.late_at == link.rx.frames and sent_before(link.rx, self.origin)):
             return  # not asked for, or sent before this upload began (see above): ignored
         if seq < self.seq or self.held >> (seq - self.seq) & 1:
             # A copy of one already in: late copies must not move the cursor back, but
