@@ -195,16 +195,15 @@ class Transfer:
         """MISSION_ITEM_INT's payload in link.txbuf from record seq (in m.rec) -> its offset."""
         off = link.begin()
         buf = link.txbuf
-        rec = self.m.rec
-        copy(buf, rec, off, 28)
+        copy(buf, self.m.rec, off, 28)
         buf[off + 28] = seq & 0xFF
         buf[off + 29] = seq >> 8
-        buf[off + 30] = rec[28]
-        buf[off + 31] = rec[29]
+        buf[off + 30] = self.m.rec[28]
+        buf[off + 31] = self.m.rec[29]
         buf[off + 32] = link.rx.sysid
         buf[off + 33] = link.rx.compid
-        buf[off + 34] = rec[30]
+        buf[off + 34] = self.m.rec[30]
         buf[off + 35] = 1 if mt == _TYPE_MISSION and self.m.runner is not None and seq == self.m.runner.current else 0
-        buf[off + 36] = rec[31]
+        buf[off + 36] = self.m.rec[31]
         buf[off + 37] = mt
         return off
