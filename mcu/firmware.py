@@ -24,7 +24,7 @@ BUILD = os.path.join(ROOT, "build", "mcu")
 SUITE = "trixie"  # the Debian suite whose source package we build (micropython 1.25.0)
 VERSION = "1.25.0"
 PACKAGE = "micropython=1.25.0+ds-1"  # pinned: the exact Debian source package
-DEFAULT_HEAP_KB = 96
+DEFAULT_HEAP_KB = 60  # the whole vehicle's smallest (min_heap_kb_m3/_m0): the tests run in it
 FS_HEAP_KB = 512  # the firmware with a filesystem: the stack's code is loaded into the heap
 
 # board profile -> (qemu port BOARD, qemu machine arguments, frozen viper kernels?)

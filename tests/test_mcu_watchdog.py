@@ -2,11 +2,12 @@
 QEMU's MPS2-AN385 maps a CMSDK APB watchdog, which mavstack/qemu.py drives; the
 micro:bit (qemu_m0) maps none (docs/reliability.md). The unix port's: test_watchdog.py.
 
-A handler that never returns: the board resets, the firmware starts the vehicle again
-(the restart word, mcu/firmware.py) and it is back with its parameters and mission from
-the RAM storage, which a reset keeps; HEARTBEAT within the timeout plus the boot. The
-application failing at every start (tests/watchdog/: a firmware of its own, whose profile
-takes faults from its APP_FAULT parameter): after 3 resets the board starts in safe mode
+Both tests run a firmware of their own (tests/watchdog/), the M3's with faults on demand,
+in the vehicle's smallest heap (mcu/firmware.py's default). A handler that never returns
+(MAV_CMD_USER_1's): the board resets, the firmware starts the vehicle again (the restart word,
+mcu/firmware.py) and it is back with its parameters and mission from the RAM storage,
+which a reset keeps; HEARTBEAT within the timeout plus the boot. The application failing
+at every start (its APP_FAULT parameter): after 3 resets the board starts in safe mode
 and says so; a ground station puts the parameter right, and after the clean run the
 next start is a normal one.
 """
@@ -28,21 +29,6 @@ FAULTS_MANIFEST = os.path.join(ROOT, "tests", "watchdog", "faults_manifest.py")
 PREFLIGHT_STORAGE = 245
 PREFLIGHT_REBOOT_SHUTDOWN = 246
 INT32, REAL32 = 6, 9
-
-# Starts the vehicle as the rig does, with a handler for DEBUG that never returns.
-HANGING_VEHICLE = """
-import board, main
-_standing = board.application
-def _hang(link, payload):
-    while True:
-        pass
-def _application(ep):
-    ep.on(254, _hang)
-    return _standing(ep)
-board.application = _application
-main.main([])
-"""
-
 
 class Console(threading.Thread):
     """The REPL UART read as it comes: when the board printed what."""
@@ -80,13 +66,6 @@ class Console(threading.Thread):
         return sum(text in line for _, line in self.lines)
 
 
-def _mavlink(board):
-    os.environ["MAVLINK20"] = "1"
-    from pymavlink import mavutil
-
-    return mavutil.mavlink_connection(board.ptys[-1], baud=115200, source_system=255, source_component=190)
-
-
 def _param(m, name, value=None, ptype=REAL32):
     for _ in range(3):
         if value is None:
@@ -119,31 +98,23 @@ def _safe_texts(m, seconds, until=None):
 
 
 @pytest.fixture
-def m3():
-    _gate()
-    with EmulatedBoard("qemu_m3") as b:
-        yield b
-
-
-@pytest.fixture
 def faulty_m3():
     _gate()
     with EmulatedBoard("qemu_m3", manifest=FAULTS_MANIFEST) as b:
         yield b
 
 
-def test_a_hung_loop_resets_the_board_and_the_vehicle_comes_back(m3):
-    console = Console(m3.repl.serial)
-    m3.repl.exec_raw_no_follow(HANGING_VEHICLE)
+def test_a_hung_loop_resets_the_board_and_the_vehicle_comes_back(faulty_m3):
+    m = faulty_m3.start_vehicle()
+    console = Console(faulty_m3.repl.serial)
     console.start()
-    m = _mavlink(m3)
-    assert m.wait_heartbeat(timeout=20) is not None
     assert _param(m, "SIM_SPEED", 8.5).param_value == 8.5
     assert run(m, PREFLIGHT_STORAGE, 1.0) == 0
     items = plan(20, tag=3)
     assert MissionClient(m).upload(items) == 0
 
-    m.mav.debug_send(0, 0, 1.0)  # its handler never returns: nothing feeds the watchdog
+    # (MAV_CMD_USER_1) its handler never returns: nothing feeds the watchdog
+    m.mav.command_long_send(1, 1, 31010, 0, 0, 0, 0, 0, 0, 0, 0)
     hung = time.time()
     back = None
     while back is None and time.time() < hung + 10.0:

@@ -34,7 +34,7 @@ MIXED = (
 def test_committed_block_is_current(name):
     with open(paramgen.path(name), encoding="utf-8") as f:
         assert f.read() == paramgen.render(paramgen.BLOCKS[name]), \
-            "boards/%s.py is stale: run `make dialects`" % name
+            "%s is stale: run `make dialects`" % name
 
 
 def test_check_mode_agrees():

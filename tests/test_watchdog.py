@@ -118,7 +118,8 @@ def test_a_hung_loop_restarts_the_vehicle_with_its_parameters_and_mission(watche
     items = plan(20, tag=7)
     assert MissionClient(m).upload(items) == 0
 
-    m.mav.debug_send(0, 0, 1.0)  # its handler never returns: nothing feeds the watchdog
+    # (MAV_CMD_USER_1) its handler never returns: nothing feeds the watchdog
+    m.mav.command_long_send(1, 1, 31010, 0, 0, 0, 0, 0, 0, 0, 0)
     hung = time.time()
     back = heartbeat(m, 10.0, after=hung + 1.5)  # (none comes while it hangs)
     assert back is not None, v.output()

@@ -74,7 +74,7 @@ from mavstack.statustext import TextQueue
 q = TextQueue(2)
 q.put(6, "x" * 48 + "\u20ac")            # 51 bytes: the euro sign would be cut inside
 q.put(6, b"\xff\xfe\xc3abc")             # bytes as given
-print(len(q.texts[q.head].split(b"\0")[0]), q.text(0) == "x" * 48, q.text(1).encode().hex())
+print(len(q.buf[q.head * 51 + 1:q.head * 51 + 51].split(b"\0")[0]), q.text(0) == "x" * 48, q.text(1).encode().hex())
 """
 
 

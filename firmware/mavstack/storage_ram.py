@@ -24,6 +24,10 @@ def _u32(b, o):
     return b[o] | b[o + 1] << 8 | b[o + 2] << 16 | b[o + 3] << 24  # offsets: below 2^24
 
 
+def _u24(b, o):
+    return b[o] | b[o + 1] << 8 | b[o + 2] << 16  # an area's length
+
+
 def _put32(b, o, v):
     b[o] = v & 0xFF
     b[o + 1] = (v >> 8) & 0xFF
@@ -60,22 +64,17 @@ class RamFile:
         self.base = storage.area_base(entry, area)
         self.at = storage.length_at(entry, area)
 
-    def _length(self):
-        mem = self.mem
-        o = self.at
-        return mem[o] | mem[o + 1] << 8 | mem[o + 2] << 16
-
     def _capacity(self):
         return _u32(self.mem, self.at - (self.at - _HEADER) % _ENTRY + 20)
 
     def _grown(self):
         # The area's length is at least pos.
-        if self.pos > self._length():
+        if self.pos > _u24(self.mem, self.at):
             _put24(self.mem, self.at, self.pos)
 
     def seek(self, pos, whence=0):
         if whence == 2:
-            pos += self._length()
+            pos += _u24(self.mem, self.at)
         self.pos = pos
         return pos
 
@@ -83,7 +82,7 @@ class RamFile:
         return self.pos
 
     def readinto(self, buf):
-        n = self._length() - self.pos
+        n = _u24(self.mem, self.at) - self.pos
         if n > len(buf):
             n = len(buf)
         if n < 0:
@@ -93,7 +92,7 @@ class RamFile:
         return n
 
     def read(self, n=-1):
-        avail = self._length() - self.pos
+        avail = _u24(self.mem, self.at) - self.pos
         buf = bytearray(avail if n < 0 or n > avail else n)
         self.readinto(buf)
         return bytes(buf)
@@ -194,9 +193,7 @@ class RamStorage:
         return self._entry(e) + 24 + 4 * area
 
     def length(self, e, area):
-        o = self.length_at(e, area)
-        mem = self.mem
-        return mem[o] | mem[o + 1] << 8 | mem[o + 2] << 16
+        return _u24(self.mem, self.length_at(e, area))
 
     def set_length(self, e, area, n):
         _put24(self.mem, self.length_at(e, area), n)

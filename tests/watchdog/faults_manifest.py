@@ -5,8 +5,8 @@
 # its own board.mpy (the frozen profile) could pass for this one's.
 package("mavstack", base_path="../../firmware")
 module("main.py", base_path="../../firmware")
-# (the profile's table as rows, qemu_params.py, which board.py extends)
-for _name in ("qemu_m3.py", "qemu.py", "qemu_params_block.py", "qemu_params.py", "unix_params.py"):
+for _name in ("qemu_m3.py", "qemu.py", "qemu_params_block.py"):
     module(_name, base_path="../../boards")
 module("board.py")
 module("faults.py")
+module("faulty_params_block.py")  # (its readable table, faulty_params.py, stays on the host)
