@@ -11,7 +11,7 @@ mode: docs/reliability.md.
 import gc
 import sys
 
-from mavstack.compat import ticks_ms, ticks_diff
+from mavstack.compat import ticks_ms, ticks_add, ticks_diff
 from mavstack.endpoint import Endpoint, Reboot, Shutdown
 from mavstack.faults import APP
 from mavstack.services import compose
@@ -160,7 +160,6 @@ def run(ep, app=None, dog=None):
 
     status = ep.services.get("status")
     sleep = Sleeper(ep.links).sleep
-    faults = ep.faults
     # HEAP_LOCK (--set heap_lock=1): the loop must not allocate, and a MemoryError
     # says where it did.
     lock = ep.setting("HEAP_LOCK", False) and hasattr(gc, "mem_alloc")
@@ -176,6 +175,7 @@ def run(ep, app=None, dog=None):
         _REPORT[1] = ticks_ms()
     if lock:
         micropython.heap_lock()
+    app_due = ticks_ms()
     try:
         while True:
             if dog is not None:
@@ -183,7 +183,11 @@ def run(ep, app=None, dog=None):
             now = ticks_ms()
             ep.poll(now)
             if app is not None:
-                _app(ep, app, now)
+                # Ticked as a service is: when due, or on a pass every service ran.
+                if ep.all_due or ticks_diff(now, app_due) >= 0:
+                    app_due = ticks_add(now, _app(ep, app, now))
+                else:
+                    ep.until(ticks_diff(app_due, now))
             if report_ms and ticks_diff(now, _REPORT[1]) >= report_ms:
                 _REPORT[1] = now
                 _heap_report(lock)
@@ -203,14 +207,18 @@ def run(ep, app=None, dog=None):
 
 
 def _app(ep, app, now):
-    """The application's tick: its raising is a fault, not the end; what it returns (ms
-    to its next work, None: every pass) bounds the loop's sleep, as a service's does."""
+    """The application's tick -> ms to its next: its raising is a fault, not the end;
+    what it returns (ms to its next work, None: the next pass) bounds the loop's sleep,
+    as a service's does."""
     faults = ep.faults
     ms = faults.tick(app, now)
     if faults.error is not None:
         faults.count(APP, 0)
         ms = 1
-    ep.until(1 if ms is None else ms)
+    elif ms is None:
+        ms = 1
+    ep.until(ms)
+    return ms
 
 
 _REPORT = [0, 0]  # mem_total() after the last heap report, and when it was made
@@ -252,6 +260,11 @@ def _session(board, opts, dog):
         ep.close()
         if hasattr(board, "reset"):
             board.reset()
+        boot = ep.services.get("boot")
+        if boot is not None and boot.safe and hasattr(dog, "reset"):
+            # Out of safe mode the next start builds more than this one left room for in a
+            # small heap (its pieces lie between): a fresh heap, by the watchdog's reset.
+            dog.reset()
         return True
     except (KeyboardInterrupt, Shutdown):
         pass

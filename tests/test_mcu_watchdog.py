@@ -174,5 +174,7 @@ def test_three_resets_start_safe_mode_until_a_clean_run(faulty_m3):
     assert _param(m, "SIM_SPEED").param_value == 6.5
     got = MissionClient(m).download()
     assert got is not None and same(got, items)
-    assert not any("MemoryError" in line or "Fault" in line for _, line in console.lines), console.lines
+    lines = [line for _, line in console.lines]
+    bad = [i for i, line in enumerate(lines) if "MemoryError" in line or "Fault" in line]
+    assert not bad, "\n".join(lines[max(0, bad[0] - 12):bad[0] + 2])
     console.stopped = True

@@ -47,7 +47,7 @@ class Endpoint:
         self._due = []  # ticks_ms at which each ticker next has work
         self._next = self.now  # ... the first of them
         self.heard = False  # a frame came in (or wake()): every ticker runs on this pass
-        self._all = False  # ... this pass's
+        self.all_due = False  # ... this pass's (the loop ticks its application then too)
         self.wait_ms = 0  # how long the loop may sleep after this pass (poll sets it)
         self.services = {}
         self.faults = Faults(self, (Reboot, Shutdown))  # what a handler or tick raised: faults.py
@@ -201,10 +201,10 @@ class Endpoint:
             i += 1
         if self._clock is not None:
             self._clock.advance(now)
-        self._all = self.heard
+        self.all_due = self.heard
         self.heard = False
         ms = ticks_diff(self._next, now)
-        if not self._all and 0 < ms < _FAR_MS:
+        if not self.all_due and 0 < ms < _FAR_MS:
             self.wait_ms = ms  # no ticker is due: the cheap pass
         else:
             self._ticks(now)
@@ -224,7 +224,7 @@ class Endpoint:
         i = 0
         while i < n:
             ms = ticks_diff(due[i], now)
-            if ms <= _SLACK_MS or ms >= _FAR_MS or self._all:  # (farther: the clock jumped)
+            if ms <= _SLACK_MS or ms >= _FAR_MS or self.all_due:  # (farther: the clock jumped)
                 self._tick(i, now)
             elif ms < self.wait_ms:
                 self.wait_ms = ms
