@@ -107,6 +107,10 @@ class Status:
         self.conventions = Conventions()
         self.modes = Modes(())
         self.health = Health(self)
+        # idle(ms, sleep=None): the loop's sleep, counted as idle time for SYS_STATUS.load;
+        # add_idle(us): time waited elsewhere. Health's own (the loop's one call a pass).
+        self.idle = self.health.idle
+        self.add_idle = self.health.add_idle
         self.operator = None
         self.ep = None
 
@@ -257,13 +261,6 @@ class Status:
         self.rebooting = action
         self._reboot_at = ticks_add(self.ep.now, self.reboot_delay_ms)
         self.statustext(NOTICE, b"Rebooting" if action == 1 else b"Shutting down")
-
-    def idle(self, ms, sleep=None):
-        """sleep(ms) (sleep_ms by default), counted as idle time for SYS_STATUS.load."""
-        self.health.idle(ms, sleep)
-
-    def add_idle(self, us):
-        self.health.add_idle(us)
 
     # --- periodic work (links by index: see docs/design.md) -------------------
     def tick(self, now):

@@ -48,7 +48,9 @@ class Health:
         time for SYS_STATUS.load."""
         t = ticks_us()
         (sleep or sleep_ms)(ms)
-        self.add_idle(ticks_diff(ticks_us(), t))
+        if self._idle_us < 0:  # (add_idle, inline: once a pass)
+            self._idle_us = 0
+        self._idle_us += ticks_diff(ticks_us(), t)
 
     def add_idle(self, us):
         if self._idle_us < 0:
