@@ -254,16 +254,16 @@ def _session(board, opts, dog):
     try:
         run(ep, app, dog)
     except Reboot:
-        # A board resets in board.reset(); the unix vehicle (and a board without
-        # reset()) restarts in place.
+        # A board resets in board.reset() (or its watchdog's reset()); the unix vehicle
+        # (and a board with neither) restarts in place.
         stop(ep)
         ep.close()
         if hasattr(board, "reset"):
             board.reset()
-        boot = ep.services.get("boot")
-        if boot is not None and boot.safe and hasattr(dog, "reset"):
-            # Out of safe mode the next start builds more than this one left room for in a
-            # small heap (its pieces lie between): a fresh heap, by the watchdog's reset.
+        if hasattr(dog, "reset"):
+            # A watchdog that can reset the board (the emulated M3's) does, as a real
+            # board's reset() does: in a small heap the next vehicle may not find room
+            # among the pieces this one left (out of safe mode, or with an application).
             dog.reset()
         return True
     except (KeyboardInterrupt, Shutdown):

@@ -173,10 +173,11 @@ def test_uptime_past_2_30_ms_heap_locked(vehicle):
     assert "MemoryError" not in vehicle.console()
 
 
-def test_reboot_in_place_keeps_saved_parameters(vehicle):
-    """PREFLIGHT_REBOOT_SHUTDOWN 1: the board restarts the vehicle in place (one vehicle
-    in the heap at a time), its UART is read by the new one only, and what was saved to
-    the RAM storage is there after the restart."""
+def test_reboot_keeps_saved_parameters(vehicle):
+    """PREFLIGHT_REBOOT_SHUTDOWN 1: the M0 restarts the vehicle in place (one vehicle in
+    the heap at a time), the M3 resets by its watchdog (main.py starts again); its UART
+    is read by the new one only, and what was saved to the RAM storage is there after
+    the restart."""
     gcs = vehicle.start_vehicle()
     assert _set(gcs, "SIM_SPEED", 8.5, 9).param_value == 8.5
     assert run(gcs, 245, 1.0) == MAV_RESULT_ACCEPTED

@@ -155,7 +155,8 @@ def test_three_resets_start_safe_mode_until_a_clean_run(faulty_m3):
     # third reset starts safe mode, said every second.
     assert _safe_texts(m, 40.0, until=1) == 1, console.lines
     print("qemu_m3: safe mode %.1f s after the reboot" % (time.time() - t0))
-    assert console.count("RuntimeError: APP_FAULT 1: the application fails at start-up") == 3
+    assert console.count("RuntimeError: APP_FAULT 1: the application fails at start-up") == 3, \
+        "\n".join(line for _, line in console.lines)
     assert console.count("mavstack: " + SAFE_TEXT) == 1
     assert _safe_texts(m, 2.2) >= 2
     assert recv(m, "ATTITUDE", 1.0) is None  # no application, no streams
