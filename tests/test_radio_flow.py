@@ -4,6 +4,7 @@ vehicle behind a modelled SiK radio (tests/radio_rig.py) for 60 s of default str
 parameter and mission downloads: no frame lost to the radio's buffer with flow control;
 without it, frames are lost (bench/bench_radio.py measures how many)."""
 import os
+import re
 import sys
 
 from pymavlink.dialects.v20 import common as mav2
@@ -124,4 +125,7 @@ def test_mavctl_watch_shows_the_scaling(vehicle):
     finally:
         radio.close()
     radio_lines = [line for line in out.splitlines() if line.startswith("radio ")]
-    assert radio_lines and "vehicle sends at 50% (flow control)" in radio_lines[-1], out
+    # The first report starts the link at half; then it steps up while the link is busy and
+    # the radio's buffer has room, which the host's timing decides: a scaled budget, below 100.
+    shown = re.search(r"vehicle sends at (\d+)% \(flow control\)", radio_lines[-1] if radio_lines else "")
+    assert shown and 5 <= int(shown.group(1)) < 100, out
