@@ -510,6 +510,30 @@ def test_reboot_is_raised_after_the_ack_reached_the_wire():
     assert b.seen[253] >= 1  # "Rebooting" went out before
 
 
+def test_reboot_waits_for_its_held_back_ack():
+    """A ground station not kept (no HEARTBEAT) floods requests on a link its streams fill:
+    the reboot's ACK is held back behind the others, and the reboot waits for it (at most
+    3 s past its time) rather than leaving ACCEPTED unsaid."""
+    from mavstack.endpoint import Reboot
+
+    b = Bench(services=("status", "commands", "streams"))
+    link = b.ep.links[0]
+    link.medium_bps = link.bytes_per_s = 2000
+    g = b.gcs()
+    b.send(g.frame(66, 50, 1, 1, 0, 1))  # REQUEST_DATA_STREAM: all at 50 Hz
+    b.run(2000)
+    for _ in range(40):
+        b.send(g.command(512, 0.0))  # REQUEST_MESSAGE HEARTBEAT: answers held back
+    b.send(g.command(246, 1.0))
+    commands = b.ep.services["commands"]
+    b.run(1)
+    assert commands.holding() > 0 and b.ack_command != 246
+    with pytest.raises(Reboot):
+        b.run(3200)
+    assert (b.ack_command, b.ack_result) == (246, MAV_RESULT_ACCEPTED)
+    assert commands.holding() == 0
+
+
 def test_mavlink1_link_answers_in_mavlink1():
     b, g = bench(version=1)
     b.send(g.command(520, 1.0))

@@ -231,6 +231,10 @@ class Commands:
             buf[off + 9] = to.compid
         return self._sent(to)
 
+    def holding(self):
+        """ACKs held back, not sent yet (a reboot waits for them: status)."""
+        return self._held_n
+
     # --- held-back ACKs (layout at the top; small frames: docs/design.md) -----------------
     def _sent(self, to):
         """Send the ACK packed in to.link.txbuf -> True; held back -> False. One for a
