@@ -21,7 +21,8 @@ from .modes import Modes, veto
 from .operator import Operator, on_change_operator_control
 from . import vehicle_commands
 
-USES = ("missions", "streams", "signing")  # the fence plan; who sends SYS_STATUS; signing commands
+# the fence plan; who sends SYS_STATUS; signing commands; ACKs a reboot waits for
+USES = ("missions", "streams", "signing", "commands")
 
 
 # MAV_STATE
@@ -52,8 +53,6 @@ _MAVLINK_VERSION = const(3)
 
 _PERIOD_MS = const(1000)  # HEARTBEAT, and SYS_STATUS when no streams service schedules it
 _WAIT_MS = const(100)
-_ACK_WAIT_MS = const(3000)  # a reboot waits this long at most for held-back ACKs
-_ACK_WAIT_STEP_MS = const(10)
 _TEXT_FRAME = const(66)  # bytes of a MAVLink 2 STATUSTEXT, for pacing on slow links
 _TEXT_SHARE = const(4)  # STATUSTEXT may use a quarter of the slowest link
 
@@ -287,7 +286,7 @@ class Status:
             for link in self.ep.links:
                 self.texts.send(link)
             self.texts.pop()
-        if self.rebooting and ticks_diff(now, self._reboot_at) >= 0 and not self._acks_held(now):
+        if self.rebooting and vehicle_commands.reboot_due(self.ep, self._reboot_at, now):
             action = self.rebooting
             self.rebooting = 0
             if action == 2:
@@ -309,15 +308,8 @@ class Status:
         if self.rebooting and ticks_diff(self._reboot_at, now) < ms:
             ms = ticks_diff(self._reboot_at, now)
             if ms <= 0:
-                ms = _ACK_WAIT_STEP_MS  # due, waiting for held-back ACKs
+                ms = 10  # due, its held-back ACKs not yet out (vehicle_commands.reboot_due)
         return ms
-
-    def _acks_held(self, now):
-        """Does the reboot wait for ACKs the budget held back (its own among them), at most
-        _ACK_WAIT_MS past its time? "ACCEPTED" reaches the ground station first."""
-        commands = self.ep.services.get("commands")
-        return (commands is not None and commands.holding() > 0
-                and ticks_diff(now, self._reboot_at) < _ACK_WAIT_MS)
 
     def send_all(self, msgid):
         """A rare message (a change to announce) to every link."""

@@ -8,7 +8,7 @@ Reference: docs/services/status.md
 from struct import pack_into
 
 from ... import VERSION
-from ...compat import const, heap_open, heap_close
+from ...compat import const, heap_open, heap_close, ticks_diff
 from ...statustext import CRITICAL, WARNING
 from .conventions import shows_px4
 
@@ -35,6 +35,17 @@ _FRAME_GLOBAL_RELATIVE_ALT = const(3)
 _FRAME_GLOBAL_INT = const(5)
 _FRAME_GLOBAL_RELATIVE_ALT_INT = const(6)
 _FIRMWARE_VERSION_TYPE_DEV = const(0)
+_ACK_WAIT_MS = const(3000)  # a reboot waits this long at most for held-back ACKs
+
+
+def reboot_due(ep, at, now):
+    """Is the reboot due at `at` to go now? Once ACKs the link's budget held back (its own
+    among them) are sent, or _ACK_WAIT_MS later: ACCEPTED reaches the ground station."""
+    late = ticks_diff(now, at)
+    if late < 0:
+        return False
+    commands = ep.services.get("commands")
+    return commands is None or commands.holding() == 0 or late >= _ACK_WAIT_MS
 
 
 class VehicleCommands:
