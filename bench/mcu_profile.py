@@ -1,7 +1,7 @@
 """Where the emulated M3's instructions go under a workload of bench_mcu_load.py: the
 vehicle built as main.py builds it, its parts wrapped in counters read from the board's
-timer (-icount shift=0: 40 instructions a count), the main loop run for a span of board
-time while the ground station paces its frames in that time. Prints, per part, its
+timer (-icount shift=0: 40 instructions a count), main.run itself run for a span of board
+time (its sleep timed, and left at the span's end) while the ground station paces its frames in that time. Prints, per part, its
 calls, instructions per call and instructions per board second (inclusive: a part's
 figure holds the parts it calls; the counters' own cost is taken out).
 
@@ -20,8 +20,7 @@ sys.path.insert(0, BENCH)
 
 import bench_mcu_load  # noqa: E402  (its paths, its Workload)
 
-BOARD = """import gc
-import main
+BOARD = """import main
 import board
 from mavstack import qemu
 ep, app = main.build(board, {"options": {"baud_budget": "57600"}})
@@ -77,29 +76,31 @@ t = clk.read()
 for _ in range(200):
     span(t, clk.read())
 over = span(t, clk.read()) // 200
-from mavstack.sleeper import Sleeper
-sleep = Sleeper(ep.links).sleep
 busy = [0, 0]
 status = ep.services.get("status")
-app_due = [0]
+idle = status.idle
+end = [0]
+class Done(Exception):
+    pass
+DONE = Done()
+def timed_idle(ms, sleep):
+    # main.run's sleep, the board's clock read around it; at the span's end, out of main.run
+    a = clk.read()
+    idle(ms, sleep)
+    busy[0] += span(a, clk.read())
+    busy[1] += 1
+    if qemu.ticks_diff(end[0], qemu.ticks_ms()) <= 0:
+        raise DONE
+status.idle = timed_idle
 def loop(ms):
-    # main.run's loop, with the board's clock read around the sleep
+    # main.run itself (heap locked: the board's HEAP_LOCK), for ms of board time
     t0 = clk.read()
-    end = qemu.ticks_add(qemu.ticks_ms(), ms)
-    while qemu.ticks_diff(end, qemu.ticks_ms()) > 0:
-        now = qemu.ticks_ms()
-        ep.poll(now)
-        if app is not None:
-            if ep.all_due or qemu.ticks_diff(now, app_due[0]) >= 0:
-                app_due[0] = qemu.ticks_add(now, main._app(ep, app, now))
-            else:
-                ep.until(qemu.ticks_diff(app_due[0], now))
-        a = clk.read()
-        status.idle(ep.wait_ms, sleep)
-        busy[0] += span(a, clk.read())
-        busy[1] += 1
+    end[0] = qemu.ticks_add(qemu.ticks_ms(), ms)
+    try:
+        main.run(ep, app)
+    except Done:
+        pass
     return span(t0, clk.read())
-status = ep.services.get("status")
 loop(2000)
 wrap(ep, "poll", "ep.poll")
 wrap(ep, "dispatch", "ep.dispatch", 3)
@@ -132,12 +133,7 @@ if DETAIL:  # the handlers by message id, the parsers, the mission stores and tr
         wrap(missions.transfer, "_take", "missions.upload._take", 3)
         wrap(missions.transfer, "_got", "missions.upload._got", 2)
 busy[0] = busy[1] = 0
-import micropython
-total = 0  # (the global made before the lock)
-gc.collect()
-micropython.heap_lock()  # as main.run locks it (HEAP_LOCK): frames too large go on the C stack
 total = loop(SPAN)
-micropython.heap_unlock()
 print("profile total", total * 40, "sleep", busy[0] * 40, "passes", busy[1], "over", over * 40)
 for k, c in acc.items():
     print("profile", k, c[0], (c[2] * 0x10000000 + c[1] - c[0] * over) * 40)
