@@ -1,9 +1,10 @@
 """Where the emulated M3's instructions go under a workload of bench_mcu_load.py: the
 vehicle built as main.py builds it, its parts wrapped in counters read from the board's
-timer (-icount shift=0: 40 instructions a count), main.run itself run for a span of board
-time (its sleep timed, and left at the span's end) while the ground station paces its frames in that time. Prints, per part, its
-calls, instructions per call and instructions per board second (inclusive: a part's
-figure holds the parts it calls; the counters' own cost is taken out).
+timer (-icount shift=0: 40 instructions a count), main.run itself run for a span of
+board time (its sleep timed, and left at the span's end) while the ground station paces
+its frames in that time. Prints, per part, its calls, instructions per call and
+instructions per board second (inclusive: a part's figure holds the parts it calls; the
+counters' own cost is taken out).
 
     .venv/bin/python bench/mcu_profile.py [idle|pilot|transfer] [seconds] [detail]
 
